@@ -1,0 +1,29 @@
+// The subcommand registry of the `certislam` command: each cmd_*.cpp registers one subcommand.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace certislam::bin {
+
+/// A subcommand's entry point: receives its own arguments (argv[0] is "certislam <name>") and
+/// returns the process exit code.
+using CommandFn = std::function<int(int argc, char** argv)>;
+
+/// One registered subcommand.
+struct Command {
+    std::string summary;  ///< one line shown by `certislam --help`
+    CommandFn run;        ///< entry point
+};
+
+/// All subcommands by name.
+std::map<std::string, Command>& Registry();
+
+/// Registers a subcommand at static-initialisation time: `static Registrar r{"solve", ...};`.
+struct Registrar {
+    Registrar(const std::string& name, std::string summary, CommandFn run);
+};
+
+}  // namespace certislam::bin

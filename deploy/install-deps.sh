@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages certislam builds against, only those that are missing.
+set -euo pipefail
+
+PACKAGES=(
+  cmake g++ clang clang-format clang-tidy pkg-config git ccache
+  libeigen3-dev libsuitesparse-dev libboost-dev
+  libprotobuf-dev protobuf-compiler libzmq3-dev cppzmq-dev libsodium-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libspectra-dev
+  libpcl-dev mpi-default-dev libnanoflann-dev libopenvdb-dev libtbb-dev libceres-dev
+  libcli11-dev nlohmann-json3-dev libyaml-cpp-dev libclang-rt-14-dev iproute2
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}" >&2
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Quick start, command 2: set up, build with warnings as errors, check formatting and
+# clang-tidy, run the whole test suite, then fuzz the envelope decoder for a bounded time.
+# Env: FUZZ_SECONDS (default 60; 0 skips), TIDY (default 1; 0 skips), BUILD_DIR.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+build="${BUILD_DIR:-$root/build}"
+cd "$root"
+
+"$root/deploy/install-deps.sh"
+
+echo "== format check"
+mapfile -t sources < <(git ls-files '*.h' '*.cpp' '*.cc' | grep -E '^(proto|transport|slam|certify|actors|bin|tests)/')
+if [ ${#sources[@]} -gt 0 ]; then
+  clang-format --dry-run --Werror "${sources[@]}"
+fi
+
+echo "== build"
+"$root/deploy/build.sh" -DCERTISLAM_WERROR=ON -DCERTISLAM_BUILD_TESTS=ON
+
+if [ "${TIDY:-1}" != "0" ]; then
+  echo "== clang-tidy"
+  mapfile -t tidy_sources < <(git ls-files '*.cpp' | grep -E '^(transport|slam|certify|actors|bin)/')
+  if [ ${#tidy_sources[@]} -gt 0 ]; then
+    printf '%s\n' "${tidy_sources[@]}" |
+      xargs -P "${JOBS:-2}" -n 4 clang-tidy -p "$build" --quiet 2>/dev/null
+  fi
+fi
+
+echo "== tests"
+(cd "$build" && ctest --output-on-failure -j "${JOBS:-2}" --timeout 900)
+
+if [ "${FUZZ_SECONDS:-60}" != "0" ] && [ -x "$root/deploy/fuzz.sh" ]; then
+  echo "== fuzz"
+  "$root/deploy/fuzz.sh" "${FUZZ_SECONDS:-60}"
+fi
+echo "== all checks passed"

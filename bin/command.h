@@ -26,4 +26,12 @@ struct Registrar {
     Registrar(const std::string& name, std::string summary, CommandFn run);
 };
 
+/// All benchmarks of `certislam bench <name>` by name (same shape as subcommands).
+std::map<std::string, Command>& BenchRegistry();
+
+/// Registers a benchmark: `static BenchRegistrar r{"transport", "...", RunTransportBench};`.
+struct BenchRegistrar {
+    BenchRegistrar(const std::string& name, std::string summary, CommandFn run);
+};
+
 }  // namespace certislam::bin

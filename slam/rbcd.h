@@ -1,0 +1,130 @@
+// Riemannian block coordinate descent (RBCD / RBCD++, Tian et al., T-RO 2021) on the rank-r
+// relaxation of pose-graph optimisation: f(X) = tr(X Q X^T), X = [Y_1 p_1 ... Y_n p_n].
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "slam/partition.h"
+#include "slam/pose_graph.h"
+
+namespace certislam::slam {
+
+/// Settings of the RBCD solver. Gradient tolerances are relative to the problem's scale:
+/// converged when ||rgrad f(X)||_F <= rel_grad_tol * max(1, f(X)) (MATH.md: absolute tolerances
+/// stop parking-garage 2.4 % above f*).
+struct RbcdConfig {
+    double rel_grad_tol = 1e-6;          ///< global stop: ||rgrad|| <= this * max(1, f), > 0
+    double local_tol_factor = 0.1;       ///< block stop tolerance = this * global tolerance, (0, 1]
+    double block_grad_reduction = 1e-2;  ///< block stop when its gradient dropped by this, (0, 1)
+    int block_max_rtr_iterations = 5;    ///< trust-region steps per block update, >= 1
+    int max_tcg_iterations = 100;        ///< Steihaug-CG iterations per trust-region step, >= 1
+    int max_iterations = 2000;           ///< outer RBCD iterations, >= 1
+    double max_seconds = 600.0;          ///< wall-clock limit, > 0
+    bool acceleration = true;            ///< Nesterov acceleration with adaptive restart (RBCD++)
+    bool greedy = false;  ///< true: update only the colour class with the largest gradient per
+                          ///< iteration; false: every colour class in turn (one sweep)
+    double precon_regulariser = 1e-8;  ///< Cholesky of Q_aa + this * max diag(Q_aa) I, > 0
+
+    /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
+    void Validate() const;
+};
+
+/// Reported after every outer iteration through the optional progress callback.
+struct RbcdProgress {
+    int iteration = 0;       ///< outer iterations done
+    double cost = 0.0;       ///< f(X) = tr(X Q X^T)
+    double grad_norm = 0.0;  ///< ||rgrad f(X)||_F
+    double seconds = 0.0;    ///< since the solve started
+};
+
+/// Outcome of SolveRbcd.
+struct RbcdResult {
+    enum class Status {
+        kConverged,      ///< ||rgrad|| <= rel_grad_tol * max(1, f)
+        kMaxIterations,  ///< max_iterations reached first
+        kMaxTime,        ///< max_seconds reached first
+        kStalled,        ///< the cost stopped decreasing before the gradient tolerance was met
+    };
+    Status status = Status::kMaxIterations;
+    Eigen::MatrixXd X;       ///< r x (d+1)n solution (rank r = X0.rows())
+    double cost = 0.0;       ///< tr(X Q X^T) (SE-Sync objective of the lifted X, no 1/2)
+    double grad_norm = 0.0;  ///< ||rgrad f(X)||_F at the returned X
+    int iterations = 0;      ///< outer iterations
+    int block_updates = 0;   ///< block (robot) updates over all iterations
+    int rtr_iterations = 0;  ///< trust-region steps over all block updates
+    int restarts = 0;        ///< adaptive restarts of the acceleration
+    double seconds = 0.0;    ///< wall-clock time of the solve
+};
+
+/// f(X) = tr(X Q X^T).
+double LiftedCost(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X);
+
+/// Riemannian gradient of f at X: the projection of 2 X Q onto the tangent space of the product
+/// of St(d, r) (rotation blocks) and R^r (translations).
+Eigen::MatrixXd RiemannianGradient(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
+                                   int d);
+
+/// Solves min f(X) over the product manifold from X0 (r x (d+1)n, a point on the manifold) by
+/// RBCD with one block per robot of `partition`. With one robot this is a centralised Riemannian
+/// trust-region method (SE-Sync's solver on the lifted variable).
+RbcdResult SolveRbcd(const PoseGraph& graph, const Partition& partition, const Eigen::MatrixXd& X0,
+                     const RbcdConfig& config,
+                     const std::function<void(const RbcdProgress&)>& progress = {});
+
+/// What one RbcdAgent::Update did.
+struct RbcdAgentStatus {
+    enum class Status {
+        kImproved,   ///< the block's cost decreased
+        kConverged,  ///< the block gradient was already below the tolerance: nothing done
+        kNoProgress  ///< no trust-region step was accepted
+    };
+    Status status = Status::kConverged;
+    double cost_before = 0.0;       ///< block cost before (up to a constant)
+    double cost_after = 0.0;        ///< block cost after
+    double grad_norm_before = 0.0;  ///< block Riemannian gradient norm before
+    double grad_norm_after = 0.0;   ///< block Riemannian gradient norm after
+    int rtr_iterations = 0;         ///< trust-region steps taken
+};
+
+/// One robot's share of RBCD with plain data in and out (dpgo's agent without networking): it
+/// owns its poses' block X_a, receives its neighbours' public poses, and publishes its own.
+class RbcdAgent {
+  public:
+    /// `graph` must hold every edge touching the robot's poses (more is fine), global indices;
+    /// `rank` is r.
+    RbcdAgent(const PoseGraph& graph, const Partition& partition, int robot, int rank,
+              const RbcdConfig& config);
+    ~RbcdAgent();
+    RbcdAgent(RbcdAgent&&) noexcept;
+    RbcdAgent& operator=(RbcdAgent&&) noexcept;
+
+    /// This agent's robot id.
+    int robot() const;
+    /// Global indices of other robots' poses this robot's edges touch (ascending).
+    const std::vector<int>& NeighborPoseIds() const;
+    /// Global indices of own poses that other robots' edges touch (ascending).
+    const std::vector<int>& PublicPoseIds() const;
+    /// Sets the robot's own block, r x (d+1) * partition.size(robot).
+    void SetBlock(const Eigen::MatrixXd& X_a);
+    /// The robot's own block.
+    const Eigen::MatrixXd& Block() const;
+    /// Sets neighbours' poses: r x (d+1)|NeighborPoseIds()|, blocks in NeighborPoseIds() order.
+    void SetNeighborPoses(const Eigen::MatrixXd& blocks);
+    /// Own public poses, r x (d+1)|PublicPoseIds()|, blocks in PublicPoseIds() order.
+    Eigen::MatrixXd PublicPoses() const;
+    /// Riemannian gradient norm of the block given the current neighbour poses.
+    double BlockGradNorm() const;
+    /// A few preconditioned trust-region steps on the block (RBCD Alg. 1, line 4) until the
+    /// block gradient is <= grad_tol or dropped by config.block_grad_reduction.
+    RbcdAgentStatus Update(double grad_tol);
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace certislam::slam

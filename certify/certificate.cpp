@@ -1,0 +1,161 @@
+// Lambda(X), S = Q - blockdiag(Lambda), the Cholesky verdict and the smallest eigenpair.
+#include "certify/certificate.h"
+
+#include <Eigen/CholmodSupport>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "certify/min_eigenpair.h"
+#include "slam/check.h"
+#include "slam/pose_graph.h"
+
+namespace certislam::certify {
+namespace {
+
+using SparseMatrix = Eigen::SparseMatrix<double>;
+using slam::BlockColumn;
+
+void Require(bool ok, const std::string& field, double value, const std::string& rule) {
+    if (!ok) {
+        throw std::invalid_argument("CertificateConfig." + field + " = " + std::to_string(value) +
+                                    ": must be " + rule);
+    }
+}
+
+/// (S + eta D) with the translation row and column of pose 0 deleted. S 1_t = 0 and D 1_t = 0
+/// for the translation gauge vector 1_t (ones on translation entries), so for any x,
+/// x^T (S + eta D) x = y^T (S + eta D) y with y = x - (x_t0) 1_t, which has y_t0 = 0: the full
+/// matrix is PSD exactly when this principal submatrix is, and the submatrix is definite at an
+/// optimum (its remaining null directions, the rows of X, all have rotation entries).
+SparseMatrix GaugeFixedShifted(const SparseMatrix& S, int d, double eta) {
+    const int removed = d;  // translation entry of pose 0
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(S.nonZeros() + S.rows());
+    for (int k = 0; k < S.outerSize(); ++k) {
+        for (SparseMatrix::InnerIterator it(S, k); it; ++it) {
+            if (it.row() == removed || it.col() == removed) continue;
+            const int r = it.row() > removed ? it.row() - 1 : it.row();
+            const int c = it.col() > removed ? it.col() - 1 : it.col();
+            triplets.emplace_back(r, c, it.value());
+        }
+    }
+    for (int i = 0; i < S.rows(); ++i) {
+        if (i % (d + 1) == d) continue;  // translation entry: no shift
+        const int r = i > removed ? i - 1 : i;
+        triplets.emplace_back(r, r, eta);
+    }
+    SparseMatrix M(S.rows() - 1, S.cols() - 1);
+    M.setFromTriplets(triplets.begin(), triplets.end());
+    return M;
+}
+
+bool IsPsdAtEta(const SparseMatrix& S, int d, double eta) {
+    Eigen::CholmodDecomposition<SparseMatrix, Eigen::Lower> factor;
+    factor.cholmod().print = 0;  // a failure is an expected outcome (not certified)
+    factor.compute(GaugeFixedShifted(S, d, eta));
+    return factor.info() == Eigen::Success;
+}
+
+}  // namespace
+
+void CertificateConfig::Validate() const {
+    Require(eta_relative > 0.0 && eta_relative < 1.0, "eta_relative", eta_relative, "in (0, 1)");
+    Require(gradient_tolerance_relative > 0.0, "gradient_tolerance_relative",
+            gradient_tolerance_relative, "> 0");
+    Require(eigen_tolerance > 0.0, "eigen_tolerance", eigen_tolerance, "> 0");
+    Require(eigen_max_iterations > 0, "eigen_max_iterations", eigen_max_iterations, "> 0");
+    Require(eigen_subspace >= 3, "eigen_subspace", eigen_subspace, ">= 3");
+}
+
+std::vector<Eigen::MatrixXd> LambdaBlocks(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d) {
+    CERTISLAM_CHECK(X.cols() == Q.rows() && X.cols() % (d + 1) == 0);
+    const int n = static_cast<int>(X.cols()) / (d + 1);
+    const Eigen::MatrixXd XQ = X * Q;
+    std::vector<Eigen::MatrixXd> lambda(n);
+    for (int i = 0; i < n; ++i) {
+        const int c = BlockColumn(i, d);
+        const Eigen::MatrixXd P = XQ.middleCols(c, d).transpose() * X.middleCols(c, d);
+        lambda[i] = 0.5 * (P + P.transpose());
+    }
+    return lambda;
+}
+
+SparseMatrix CertificateMatrix(const SparseMatrix& Q, const std::vector<Eigen::MatrixXd>& lambda,
+                               int d) {
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(lambda.size() * d * d);
+    for (size_t i = 0; i < lambda.size(); ++i) {
+        const int c = BlockColumn(static_cast<int>(i), d);
+        for (int a = 0; a < d; ++a) {
+            for (int b = 0; b < d; ++b) triplets.emplace_back(c + a, c + b, -lambda[i](a, b));
+        }
+    }
+    SparseMatrix L(Q.rows(), Q.cols());
+    L.setFromTriplets(triplets.begin(), triplets.end());
+    SparseMatrix S = Q + L;
+    S.makeCompressed();
+    return S;
+}
+
+double NormUpperBound(const SparseMatrix& Q) {
+    Eigen::VectorXd row_sums = Eigen::VectorXd::Zero(Q.rows());
+    for (int k = 0; k < Q.outerSize(); ++k) {
+        for (SparseMatrix::InnerIterator it(Q, k); it; ++it)
+            row_sums[it.row()] += std::abs(it.value());
+    }
+    return row_sums.size() > 0 ? row_sums.maxCoeff() : 0.0;
+}
+
+CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d,
+                          const CertificateConfig& config) {
+    config.Validate();
+    const auto start = std::chrono::steady_clock::now();
+    CertificateResult result;
+    const int n = static_cast<int>(X.cols()) / (d + 1);
+    const std::vector<Eigen::MatrixXd> lambda = LambdaBlocks(Q, X, d);
+    const SparseMatrix S = CertificateMatrix(Q, lambda, d);
+    result.cost = (X * Q).cwiseProduct(X).sum();
+    for (const auto& block : lambda) result.dual_value += block.trace();
+    result.duality_gap = result.cost - result.dual_value;
+    result.q_norm = NormUpperBound(Q);
+    result.eta = config.eta_relative * result.q_norm;
+    result.suboptimality_bound = result.duality_gap + result.eta * d * n;
+    result.relative_suboptimality_bound =
+        result.cost > 0.0 ? result.suboptimality_bound / result.cost : 0.0;
+    // Riemannian gradient = 2 X S: on rotation columns 2((XQ)_i - Y_i sym(Y_i^T (XQ)_i)).
+    result.gradient_norm = 2.0 * (X * S).norm();
+    result.gradient_tolerance = config.gradient_tolerance_relative * 2.0 *
+                                std::sqrt(result.q_norm * std::max(result.cost, 0.0));
+    const auto finish = [&](CertificateResult::Status status) {
+        result.status = status;
+        result.seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        return result;
+    };
+    if (result.gradient_norm > result.gradient_tolerance) {
+        return finish(CertificateResult::Status::kNotCritical);
+    }
+    result.psd_at_eta = IsPsdAtEta(S, d, result.eta);  // the verdict (SE-Sync fast verification)
+    MinEigenpairConfig eig;
+    eig.initial_shift = result.eta;
+    eig.tolerance = config.eigen_tolerance;
+    eig.max_iterations = config.eigen_max_iterations;
+    eig.subspace = config.eigen_subspace;
+    eig.seed = config.seed;
+    const MinEigenpairResult pair = SmallestEigenpair(S, eig);
+    result.eigen_iterations = pair.iterations;
+    result.shift_attempts = pair.shift_attempts;
+    if (pair.status != MinEigenpairResult::Status::kConverged) {
+        return finish(CertificateResult::Status::kEigensolverFailed);
+    }
+    result.lambda_min = pair.lambda;
+    result.lambda_min_relative = result.q_norm > 0.0 ? pair.lambda / result.q_norm : 0.0;
+    result.eigen_residual = pair.residual;
+    result.eigenvector = pair.vector;
+    return finish(result.psd_at_eta ? CertificateResult::Status::kCertified
+                                    : CertificateResult::Status::kNotCertified);
+}
+
+}  // namespace certislam::certify

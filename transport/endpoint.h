@@ -1,0 +1,118 @@
+// RAII ZeroMQ endpoint of a logical edge: typed send/receive of Message (envelope + zero-copy
+// binary frames), per-edge queue policy, drop counters, and the hello/ready handshake.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+#include <zmq.hpp>
+
+#include "transport/endpoint_config.h"
+#include "transport/message.h"
+
+namespace certislam::transport {
+
+/// Counters of one endpoint (a snapshot; safe to read from another thread).
+struct EndpointCounters {
+    std::uint64_t sent = 0;                  ///< messages handed to ZeroMQ
+    std::uint64_t received = 0;              ///< valid messages accepted into the queue
+    std::uint64_t dropped_malformed = 0;     ///< garbage, truncated, wrong frame count/size
+    std::uint64_t dropped_version = 0;       ///< unknown schema major version
+    std::uint64_t dropped_unauthorized = 0;  ///< header robot id != authenticated CURVE user id
+    std::uint64_t dropped_queue_full = 0;    ///< kLatest: oldest dropped (receive) or send dropped
+    std::uint64_t send_backpressure = 0;     ///< kReliable: Send gave up after send_timeout_ms
+    std::uint64_t control_received = 0;      ///< handshake messages consumed by the endpoint
+};
+
+/// Outcome of a send.
+enum class SendStatus {
+    kSent,          ///< queued in ZeroMQ
+    kDropped,       ///< kLatest edge, queue full: dropped and counted
+    kBackpressure,  ///< kReliable edge, queue full for send_timeout_ms: not sent, retry later
+    kUnroutable,    ///< ROUTER: no connected peer has that routing id
+};
+
+/// One socket of a logical edge. Owns the socket (linger 0); one thread uses it at a time.
+/// For a mailbox: zmq_poll on handle() for ZMQ_POLLIN, then call Receive() until it returns
+/// nullopt (the endpoint keeps a bounded queue of its own, which zmq_poll does not see).
+class Endpoint {
+  public:
+    /// Creates, configures, binds and connects the socket. Throws std::invalid_argument on a
+    /// bad config and zmq::error_t when ZeroMQ refuses an address.
+    Endpoint(zmq::context_t& context, EndpointConfig config);
+    ~Endpoint();
+    Endpoint(const Endpoint&) = delete;
+    Endpoint& operator=(const Endpoint&) = delete;
+
+    /// Sends a message (publisher, dealer, push). Binary frames are not copied.
+    SendStatus Send(const Message& message);
+    /// Sends a message to one peer of a ROUTER (peer = Message::peer of one of its messages).
+    SendStatus SendTo(std::string_view peer, const Message& message);
+
+    /// The next valid message, or nullopt when none is available now (never blocks). Bad
+    /// messages met on the way are dropped and counted.
+    std::optional<Message> Receive();
+    /// The next valid message, waiting at most timeout.
+    std::optional<Message> Receive(std::chrono::milliseconds timeout);
+
+    /// Publisher: waits until `count` subscriptions have arrived (each one is a subscriber's
+    /// hello); answers each with a Ready on the stream. Returns false on timeout.
+    bool WaitForSubscribers(std::size_t count, std::chrono::milliseconds timeout);
+    /// Subscriber: waits for the publisher's Ready. Dealer: sends Hello, waits for the router's
+    /// Ready (routers answer Hello by themselves). Returns false on timeout. Messages that
+    /// arrive meanwhile stay queued for Receive().
+    bool WaitReady(std::chrono::milliseconds timeout);
+    /// True once the handshake completed (subscriber/dealer) or a subscriber joined (publisher).
+    bool ready() const { return ready_; }
+    /// Publisher: subscriptions currently known.
+    std::size_t subscribers() const { return subscribers_; }
+
+    /// The raw ZeroMQ socket handle, for zmq_poll.
+    void* handle() { return socket_.handle(); }
+    /// The socket itself.
+    zmq::socket_t& socket() { return socket_; }
+    /// Messages waiting in the endpoint's own queue.
+    std::size_t queued() const { return queue_.size(); }
+    /// Addresses actually bound (tcp port 0 resolved to the ephemeral port).
+    const std::vector<std::string>& bound_addresses() const { return bound_; }
+    /// The configuration it was built from.
+    const EndpointConfig& config() const { return config_; }
+    /// Snapshot of the counters.
+    EndpointCounters counters() const;
+
+  private:
+    struct AtomicCounters {
+        std::atomic<std::uint64_t> sent{0}, received{0}, dropped_malformed{0}, dropped_version{0},
+            dropped_unauthorized{0}, dropped_queue_full{0}, send_backpressure{0},
+            control_received{0};
+    };
+
+    void Configure();
+    void Pump();
+    bool QueueHasRoom() const;
+    void HandleFrames(std::vector<zmq::message_t>&& frames);
+    void HandleSubscription(const zmq::message_t& frame);
+    bool HandleControl(const Message& message);
+    void Enqueue(Message&& message);
+    SendStatus SendFrames(std::vector<zmq::message_t>&& frames);
+    Message MakeControl(std::uint64_t nonce, bool hello) const;
+
+    EndpointConfig config_;
+    zmq::socket_t socket_;
+    std::vector<std::string> bound_;
+    std::deque<Message> queue_;
+    std::size_t queue_bytes_ = 0;
+    AtomicCounters counters_;
+    bool ready_ = false;
+    std::size_t subscribers_ = 0;
+    std::uint64_t hello_nonce_ = 0;
+    std::uint64_t control_sequence_ = 0;
+};
+
+}  // namespace certislam::transport

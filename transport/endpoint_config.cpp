@@ -1,0 +1,73 @@
+// Validation of endpoint configurations and the logical edge table.
+#include "transport/endpoint_config.h"
+
+#include <stdexcept>
+
+namespace certislam::transport {
+
+bool IsSupportedAddress(const std::string& address) {
+    for (const char* scheme : {"inproc://", "ipc://", "tcp://"}) {
+        const std::string prefix = scheme;
+        if (address.size() > prefix.size() && address.compare(0, prefix.size(), prefix) == 0) {
+            return true;
+        }
+    }
+    return false;
+}
+
+namespace {
+
+[[noreturn]] void Reject(const EndpointConfig& config, const std::string& field,
+                         const std::string& value, const std::string& rule) {
+    throw std::invalid_argument("EndpointConfig(" + config.edge + ")." + field + " = '" + value +
+                                "': " + rule);
+}
+
+}  // namespace
+
+void EndpointConfig::Validate() const {
+    if (edge.empty()) Reject(*this, "edge", edge, "must name the logical edge");
+    if (bind.empty() && connect.empty()) {
+        Reject(*this, "bind/connect", "", "at least one address is required");
+    }
+    for (const auto& address : bind) {
+        if (!IsSupportedAddress(address)) {
+            Reject(*this, "bind", address, "must start with inproc://, ipc:// or tcp://");
+        }
+    }
+    for (const auto& address : connect) {
+        if (!IsSupportedAddress(address)) {
+            Reject(*this, "connect", address, "must start with inproc://, ipc:// or tcp://");
+        }
+    }
+    if (max_queue_messages == 0) Reject(*this, "max_queue_messages", "0", "must be positive");
+    if (max_queue_messages > 1'000'000'000) {
+        Reject(*this, "max_queue_messages", std::to_string(max_queue_messages),
+               "must be at most 1e9");
+    }
+    if (max_queue_bytes == 0) Reject(*this, "max_queue_bytes", "0", "must be positive");
+    if (send_timeout_ms < -1) {
+        Reject(*this, "send_timeout_ms", std::to_string(send_timeout_ms), "must be >= -1");
+    }
+    if (reconnect_interval_ms < 0) {
+        Reject(*this, "reconnect_interval_ms", std::to_string(reconnect_interval_ms),
+               "must be >= 0");
+    }
+    if (curve) curve->Validate();
+    limits.Validate();
+}
+
+void EdgeTable::Add(const std::string& key, EndpointConfig config) {
+    config.Validate();
+    table_[key] = std::move(config);
+}
+
+const EndpointConfig& EdgeTable::Get(const std::string& key) const {
+    const auto it = table_.find(key);
+    if (it == table_.end()) {
+        throw std::invalid_argument("edge '" + key + "' is not in the configuration");
+    }
+    return it->second;
+}
+
+}  // namespace certislam::transport

@@ -1,0 +1,73 @@
+// Configuration of one socket endpoint of a logical edge, and the table that binds logical edge
+// names to addresses (inproc://, ipc://, tcp://) so actor code never names a transport.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "transport/curve.h"
+#include "transport/message.h"
+
+namespace certislam::transport {
+
+/// The socket pattern of an endpoint.
+enum class Role {
+    kPublisher,   ///< stream out (XPUB: sees subscriptions, which start the handshake)
+    kSubscriber,  ///< stream in (SUB, subscribed to everything)
+    kDealer,      ///< requests out / control client (DEALER)
+    kRouter,      ///< requests in / control server (ROUTER, unroutable sends are errors)
+    kPush,        ///< reliable one-way out (PUSH)
+    kPull,        ///< reliable one-way in (PULL)
+};
+
+/// What happens when a queue is full.
+enum class Delivery {
+    kLatest,    ///< sensor streams: receiver keeps the newest, drops the oldest; sender drops
+                ///< instead of blocking; every drop is counted
+    kReliable,  ///< control/solver: never dropped; a full queue blocks the sender up to
+                ///< send_timeout_ms, then Send returns kBackpressure (nothing is lost silently)
+};
+
+/// One endpoint of a logical edge.
+struct EndpointConfig {
+    std::string edge;  ///< logical edge name, e.g. "keyframes"
+    Role role = Role::kPublisher;
+    std::vector<std::string> bind;     ///< addresses to bind (tcp port 0 or * = ephemeral)
+    std::vector<std::string> connect;  ///< addresses to connect to (one per peer)
+    Delivery delivery = Delivery::kReliable;
+    std::size_t max_queue_messages = 1000;     ///< per queue (ZeroMQ HWM and receive queue)
+    std::size_t max_queue_bytes = 512u << 20;  ///< receive queue byte bound
+    int send_timeout_ms = 1000;                ///< kReliable: longest a Send blocks (-1 = forever)
+    int reconnect_interval_ms = 100;           ///< ZeroMQ reconnect interval to a lost peer
+    std::optional<CurveConfig> curve;          ///< CURVE security (tcp:// edges between robots)
+    DecodeLimits limits;                       ///< bounds on received frames
+    std::uint32_t robot_id = 0;                ///< this robot, stamped on control messages it sends
+    std::string node_name;                     ///< this actor, stamped on control messages it sends
+
+    /// Throws std::invalid_argument naming the field, value and rule (no address, an address
+    /// that is not inproc://, ipc:// or tcp://, a zero bound, bad keys).
+    void Validate() const;
+};
+
+/// Logical edge name -> endpoint configurations, filled from the configuration file.
+class EdgeTable {
+  public:
+    /// Adds (or replaces) an endpoint under key "edge/role", e.g. "keyframes/sub". Validates it.
+    void Add(const std::string& key, EndpointConfig config);
+    /// The configuration under key. Throws std::invalid_argument naming the unknown key.
+    const EndpointConfig& Get(const std::string& key) const;
+    /// True when key is configured.
+    bool Has(const std::string& key) const { return table_.count(key) > 0; }
+
+  private:
+    std::map<std::string, EndpointConfig> table_;
+};
+
+/// True when address starts with inproc://, ipc:// or tcp:// and has something after it.
+bool IsSupportedAddress(const std::string& address);
+
+}  // namespace certislam::transport

@@ -17,6 +17,8 @@ namespace {
 using SparseMatrix = Eigen::SparseMatrix<double>;
 using slam::BlockColumn;
 
+constexpr double kRoundingNoise = 1e-12;  ///< relative noise of a product X Q in doubles
+
 void Require(bool ok, const std::string& field, double value, const std::string& rule) {
     if (!ok) {
         throw std::invalid_argument("CertificateConfig." + field + " = " + std::to_string(value) +
@@ -54,6 +56,7 @@ SparseMatrix GaugeFixedShifted(const SparseMatrix& S, int d, double eta) {
 bool IsPsdAtEta(const SparseMatrix& S, int d, double eta) {
     Eigen::CholmodDecomposition<SparseMatrix, Eigen::Lower> factor;
     factor.cholmod().print = 0;  // a failure is an expected outcome (not certified)
+    factor.setMode(Eigen::CholmodSupernodalLLt);  // LDL^T would accept indefinite matrices
     factor.compute(GaugeFixedShifted(S, d, eta));
     return factor.info() == Eigen::Success;
 }
@@ -126,8 +129,10 @@ CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d
         result.cost > 0.0 ? result.suboptimality_bound / result.cost : 0.0;
     // Riemannian gradient = 2 X S: on rotation columns 2((XQ)_i - Y_i sym(Y_i^T (XQ)_i)).
     result.gradient_norm = 2.0 * (X * S).norm();
+    // The second term is the rounding noise of X Q (it matters only where f(X) = 0).
     result.gradient_tolerance = config.gradient_tolerance_relative * 2.0 *
-                                std::sqrt(result.q_norm * std::max(result.cost, 0.0));
+                                    std::sqrt(result.q_norm * std::max(result.cost, 0.0)) +
+                                kRoundingNoise * result.q_norm * X.norm();
     const auto finish = [&](CertificateResult::Status status) {
         result.status = status;
         result.seconds =

@@ -43,6 +43,9 @@ class InverseOperator {
 bool FindShift(const SparseMatrix& S, const MinEigenpairConfig& config, Cholesky* factor,
                MinEigenpairResult* result) {
     factor->cholmod().print = 0;  // a failed attempt is expected, not worth a warning
+    // LL^T only: CHOLMOD's automatic mode may pick a simplicial LDL^T, which "succeeds" on
+    // indefinite matrices and would make every shift look valid.
+    factor->setMode(Eigen::CholmodSupernodalLLt);
     factor->analyzePattern(S);
     double magnitude = config.initial_shift;
     for (int k = 0; k < config.max_shift_attempts; ++k) {

@@ -1,0 +1,165 @@
+// Tests of the dual certificate: closed-form optimum certifies, a twisted critical point does
+// not, a non-critical point is refused, and the eigensolver matches a dense solver.
+#include "certify/certificate.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <Eigen/SVD>
+#include <random>
+
+#include "certify/min_eigenpair.h"
+#include "slam/connection_laplacian.h"
+#include "tests/certify/test_graphs.h"
+
+namespace certislam::certify {
+namespace {
+
+using testing::Edge;
+using testing::Rot;
+
+constexpr double kCostTolerance = 1e-10;       // relative, closed form vs f(X)
+constexpr double kDenseMatchTolerance = 1e-8;  // relative to ||Q||
+constexpr double kSaddleCurvature = 1e-3;      // relative; the twist's eigenvalue is far below
+
+Eigen::MatrixXd ProjectToSO(const Eigen::MatrixXd& M) {
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::MatrixXd D = Eigen::MatrixXd::Identity(M.rows(), M.cols());
+    D(M.rows() - 1, M.rows() - 1) = (svd.matrixU() * svd.matrixV().transpose()).determinant();
+    return svd.matrixU() * D * svd.matrixV().transpose();
+}
+
+/// Two poses joined by two disagreeing edges: R_2 = Proj_SO(k1 A + k2 B), t_2 = tau-weighted mean.
+struct TwoPoseProblem {
+    slam::PoseGraph graph;
+    Eigen::MatrixXd X;
+    double f_star = 0.0;
+};
+
+TwoPoseProblem MakeTwoPose(int d) {
+    TwoPoseProblem p;
+    p.graph.d = d;
+    p.graph.n = 2;
+    Eigen::VectorXd ta = Eigen::VectorXd::LinSpaced(d, 1.0, 2.0);
+    Eigen::VectorXd tb = Eigen::VectorXd::LinSpaced(d, 1.5, 1.0);
+    Eigen::MatrixXd A = Rot(d, 0.3), B = Rot(d, 0.5);
+    if (d == 3) B = B * Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    p.graph.edges = {Edge(0, 1, A, ta, 2.0, 5.0), Edge(0, 1, B, tb, 3.0, 1.0)};
+    const Eigen::MatrixXd R2 = ProjectToSO(2.0 * A + 3.0 * B);
+    const Eigen::VectorXd t2 = (5.0 * ta + 1.0 * tb) / 6.0;
+    p.X = Eigen::MatrixXd::Zero(d, 2 * (d + 1));
+    p.X.block(0, 0, d, d).setIdentity();
+    p.X.block(0, d + 1, d, d) = R2;
+    p.X.col(2 * d + 1) = t2;
+    p.f_star = 2.0 * (R2 - A).squaredNorm() + 3.0 * (R2 - B).squaredNorm() +
+               5.0 * (t2 - ta).squaredNorm() + 1.0 * (t2 - tb).squaredNorm();
+    return p;
+}
+
+class TwoPoseByDimension : public ::testing::TestWithParam<int> {};
+
+TEST_P(TwoPoseByDimension, ClosedFormOptimumCertifies) {
+    const int d = GetParam();
+    const TwoPoseProblem p = MakeTwoPose(d);
+    const auto Q = slam::ConnectionLaplacian(p.graph);
+    const CertificateResult result = Certify(Q, p.X, d);
+    EXPECT_EQ(result.status, CertificateResult::Status::kCertified);
+    EXPECT_NEAR(result.cost, p.f_star, kCostTolerance * p.f_star);
+    EXPECT_NEAR(result.duality_gap, 0.0, kCostTolerance * p.f_star);
+    EXPECT_GE(result.lambda_min_relative, -kDenseMatchTolerance);
+    EXPECT_LE(result.suboptimality_bound, result.eta * d * 2 + kCostTolerance * p.f_star);
+}
+
+TEST_P(TwoPoseByDimension, PerturbedPointIsNotCritical) {
+    const int d = GetParam();
+    TwoPoseProblem p = MakeTwoPose(d);
+    p.X.block(0, d + 1, d, d) = p.X.block(0, d + 1, d, d) * Rot(d, 0.05);
+    const CertificateResult result = Certify(slam::ConnectionLaplacian(p.graph), p.X, d);
+    EXPECT_EQ(result.status, CertificateResult::Status::kNotCritical);
+    EXPECT_GT(result.gradient_norm, result.gradient_tolerance);
+}
+
+TEST_P(TwoPoseByDimension, TwistedCycleIsCriticalButNotCertified) {
+    const int d = GetParam();
+    const int n = 8;
+    const auto Q = slam::ConnectionLaplacian(testing::IdentityCycle(d, n));
+    const CertificateResult result = Certify(Q, testing::TwistedCycle(d, n), d);
+    EXPECT_EQ(result.status, CertificateResult::Status::kNotCertified);
+    EXPECT_GT(result.cost, 1.0);  // f* = 0
+    EXPECT_LE(result.gradient_norm, result.gradient_tolerance);
+    EXPECT_LT(result.lambda_min_relative, -kSaddleCurvature);
+    EXPECT_FALSE(result.psd_at_eta);
+    ASSERT_EQ(result.eigenvector.size(), Q.rows());
+    EXPECT_NEAR(result.eigenvector.norm(), 1.0, 1e-12);
+}
+
+INSTANTIATE_TEST_SUITE_P(Dimensions, TwoPoseByDimension, ::testing::Values(2, 3),
+                         [](const auto& info) { return "d" + std::to_string(info.param); });
+
+double DenseLambdaMin(const Eigen::SparseMatrix<double>& S) {
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> dense{Eigen::MatrixXd(S)};
+    return dense.eigenvalues()(0);
+}
+
+/// A random noisy 3D graph (chain + random loops) and a random point X on the manifold.
+std::pair<Eigen::SparseMatrix<double>, Eigen::MatrixXd> RandomProblem(int n, int r, int seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> normal;
+    std::uniform_int_distribution<int> pick(0, n - 1);
+    slam::PoseGraph graph;
+    graph.n = n;
+    auto random_rotation = [&] {
+        return Eigen::MatrixXd(
+            Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng))
+                .normalized()
+                .toRotationMatrix());
+    };
+    for (int k = 0; k < 3 * n; ++k) {
+        const int i = k < n - 1 ? k : pick(rng);
+        const int j = k < n - 1 ? k + 1 : pick(rng);
+        if (i == j) continue;
+        graph.edges.push_back(Edge(i, j, random_rotation(), Eigen::Vector3d::Random(),
+                                   1.0 + std::abs(normal(rng)), 0.5 + std::abs(normal(rng))));
+    }
+    Eigen::MatrixXd X = Eigen::MatrixXd::Random(r, 4 * n);
+    for (int i = 0; i < n; ++i) {
+        Eigen::HouseholderQR<Eigen::MatrixXd> qr(X.middleCols(4 * i, 3));
+        X.middleCols(4 * i, 3) = qr.householderQ() * Eigen::MatrixXd::Identity(r, 3);
+    }
+    return {slam::ConnectionLaplacian(graph), X};
+}
+
+TEST(SmallestEigenpair, MatchesDenseSolverOnCertificateMatrices) {
+    for (int seed = 1; seed <= 4; ++seed) {
+        const auto [Q, X] = RandomProblem(12, 4, seed);
+        const auto S = CertificateMatrix(Q, LambdaBlocks(Q, X, 3), 3);
+        const double scale = NormUpperBound(Q);
+        const MinEigenpairResult pair = SmallestEigenpair(S);
+        ASSERT_EQ(pair.status, MinEigenpairResult::Status::kConverged) << "seed " << seed;
+        EXPECT_NEAR(pair.lambda, DenseLambdaMin(S), kDenseMatchTolerance * scale) << seed;
+        EXPECT_LE(pair.residual, kDenseMatchTolerance * scale);
+        const MinEigenpairResult on_q = SmallestEigenpair(Q);  // PSD with the gauge null vector
+        ASSERT_EQ(on_q.status, MinEigenpairResult::Status::kConverged);
+        EXPECT_NEAR(on_q.lambda, DenseLambdaMin(Q), kDenseMatchTolerance * scale);
+    }
+}
+
+TEST(SmallestEigenpair, IsReproducibleWithFixedSeed) {
+    const auto [Q, X] = RandomProblem(10, 3, 7);
+    const auto S = CertificateMatrix(Q, LambdaBlocks(Q, X, 3), 3);
+    EXPECT_EQ(SmallestEigenpair(S).lambda, SmallestEigenpair(S).lambda);
+}
+
+TEST(CertificateConfig, RejectsBadValuesNamingTheField) {
+    CertificateConfig config;
+    config.eta_relative = -1.0;
+    try {
+        config.Validate();
+        FAIL() << "no exception";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("eta_relative"), std::string::npos);
+    }
+}
+
+}  // namespace
+}  // namespace certislam::certify

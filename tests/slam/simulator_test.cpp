@@ -109,6 +109,26 @@ TEST(Simulator, RevisitsComeWithinAFewMetres) {
     EXPECT_GT(near, 30);
 }
 
+TEST(Simulator, RobotsDriveOnStreetsClearOfBuildingsAndTrees) {
+    const MissionGenerator g(SimulatorConfig{});
+    constexpr double kClearanceM = 1.0;
+    for (int r = 0; r < g.num_robots(); ++r) {
+        for (int k = 0; k < g.num_keyframes(r); ++k) {
+            const Eigen::Vector3d p = g.T_world_sensor_truth(r, k).translation();
+            for (const SimBox& b : g.world().boxes()) {
+                const Eigen::Vector3d lo = b.min.array() - kClearanceM;
+                const Eigen::Vector3d hi = b.max.array() + kClearanceM;
+                const bool inside =
+                    (p.array() > lo.array()).all() && (p.array() < hi.array()).all();
+                ASSERT_FALSE(inside) << "robot " << r << " keyframe " << k;
+            }
+            for (const SimCylinder& c : g.world().cylinders()) {
+                ASSERT_GT((p.head<2>() - c.center).norm(), c.radius + kClearanceM);
+            }
+        }
+    }
+}
+
 TEST(Simulator, TunnelStretchHasPointsOnBothWalls) {
     const MissionGenerator g(SimulatorConfig{});
     const SimStreets& st = g.streets();

@@ -28,10 +28,12 @@ constexpr int kMaxBatch = 64;
 }  // namespace
 
 struct Actor::WatchEntry {
-    void* handle = nullptr;           ///< libzmq socket handle polled
-    zmq::socket_t* socket = nullptr;  ///< set for `Watch`: the runtime receives
-    MessageHandler on_message;        ///< for `Watch`
-    ReadableHandler on_readable;      ///< for `WatchReadable`
+    void* handle = nullptr;                   ///< libzmq socket handle polled
+    zmq::socket_t* socket = nullptr;          ///< set for `Watch`: the runtime receives
+    MessageHandler on_message;                ///< for `Watch`
+    ReadableHandler on_readable;              ///< for `WatchReadable`
+    transport::Endpoint* endpoint = nullptr;  ///< set for `WatchEndpoint`
+    EndpointHandler on_endpoint;              ///< for `WatchEndpoint`
 };
 
 struct Actor::TimerEntry {
@@ -116,6 +118,18 @@ void Actor::Watch(zmq::socket_t& socket, MessageHandler handler) {
     watches_.push_back(std::move(entry));
 }
 
+void Actor::WatchEndpoint(transport::Endpoint& endpoint, EndpointHandler handler) {
+    CERTISLAM_CHECK(OnActorThread());
+    auto entry = std::make_unique<WatchEntry>();
+    entry->handle = endpoint.handle();
+    entry->endpoint = &endpoint;
+    entry->on_endpoint = std::move(handler);
+    WatchEntry* watch = entry.get();
+    watches_.push_back(std::move(entry));
+    // Messages may already wait in the endpoint's queue (taken in during a handshake).
+    Post([this, watch] { Dispatch(*watch); });
+}
+
 void Actor::WatchReadable(void* zmq_socket_handle, ReadableHandler handler) {
     CERTISLAM_CHECK(OnActorThread());
     CERTISLAM_CHECK(zmq_socket_handle != nullptr);
@@ -185,6 +199,10 @@ void Actor::Loop() {
 }
 
 void Actor::Dispatch(WatchEntry& watch) {
+    if (watch.endpoint != nullptr) {
+        DispatchEndpoint(watch);
+        return;
+    }
     if (watch.socket == nullptr) {
         RunGuarded(watch.on_readable);
         return;
@@ -203,6 +221,21 @@ void Actor::Dispatch(WatchEntry& watch) {
             CountMalformed();
         }
     }
+}
+
+void Actor::DispatchEndpoint(WatchEntry& watch) {
+    for (int i = 0; i < kMaxBatch; ++i) {
+        std::optional<transport::Message> message = watch.endpoint->Receive();
+        if (!message) return;
+        bool ok = false;
+        RunGuarded([&] {
+            watch.on_endpoint(*message);
+            ok = true;
+        });
+        if (ok) CountHandled();
+    }
+    // Batch used up: what is left may sit in the endpoint's queue, which zmq_poll does not see.
+    if (watch.endpoint->queued() > 0) Post([this, w = &watch] { Dispatch(*w); });
 }
 
 long Actor::PollTimeoutMs() const {

@@ -17,6 +17,8 @@
 #include <boost/asio/steady_timer.hpp>
 #include <zmq.hpp>
 
+#include "transport/endpoint.h"
+
 namespace certislam::actors {
 
 /// A copy of an actor's counters at one instant (all monotonically increasing).
@@ -45,6 +47,10 @@ using MessageHandler = std::function<Disposition(Frames& frames)>;
 /// Called when a watched foreign socket (e.g. a transport endpoint) is readable; it receives
 /// what it wants and reports with `Count*`. May throw (counted, the actor keeps going).
 using ReadableHandler = std::function<void()>;
+
+/// Handles one valid message taken from a watched transport endpoint; may throw (counted, the
+/// actor keeps going). Malformed messages never reach it: the endpoint drops and counts them.
+using EndpointHandler = std::function<void(transport::Message& message)>;
 
 /// Base class of every actor. A derived class creates its sockets and timers in `OnStart()`
 /// (which runs on the actor's thread: one socket per thread), and must call `Stop()` in its own
@@ -94,6 +100,11 @@ class Actor {
     /// Polls `socket` and calls `handler` for each multipart message received on it.
     void Watch(zmq::socket_t& socket, MessageHandler handler);
 
+    /// Polls a transport endpoint (which the derived class owns, creates in OnStart() and
+    /// destroys in OnStop()) and calls `handler` for each valid message; counts `handled`.
+    /// Drains the endpoint's own queue too, which zmq_poll does not see.
+    void WatchEndpoint(transport::Endpoint& endpoint, EndpointHandler handler);
+
     /// Polls a foreign socket by its libzmq handle and calls `handler` when it is readable.
     void WatchReadable(void* zmq_socket_handle, ReadableHandler handler);
 
@@ -126,6 +137,7 @@ class Actor {
     void ThreadMain(std::promise<void>* started);
     void Loop();
     void Dispatch(WatchEntry& watch);
+    void DispatchEndpoint(WatchEntry& watch);
     long PollTimeoutMs() const;
     void ArmTimer(TimerEntry& timer);
     void Wake();

@@ -98,6 +98,9 @@ class RbcdAgent {
     /// `rank` is r.
     RbcdAgent(const PoseGraph& graph, const Partition& partition, int robot, int rank,
               const RbcdConfig& config);
+    /// Same from the global connection Laplacian Q (only its columns of this robot are read).
+    RbcdAgent(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partition, int robot,
+              int rank, const RbcdConfig& config);
     ~RbcdAgent();
     RbcdAgent(RbcdAgent&&) noexcept;
     RbcdAgent& operator=(RbcdAgent&&) noexcept;

@@ -1,0 +1,68 @@
+// RBCD reaches the published optima f* (data/g2o/README.md) on the small benchmark files, with one
+// robot (centralised trust region) and with five (block coordinate descent).
+#include "slam/rbcd.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <string>
+
+#include "slam/chordal.h"
+#include "slam/connection_laplacian.h"
+#include "slam/g2o_io.h"
+#include "slam/partition.h"
+#include "slam/rounding.h"
+
+namespace certislam::slam {
+namespace {
+
+constexpr double kRelGapTol = 1e-6;
+
+struct Case {
+    const char* file;
+    double f_star;
+    int robots;
+};
+
+std::string Name(const testing::TestParamInfo<Case>& info) {
+    std::string s = info.param.file;
+    s = s.substr(0, s.find('.'));
+    return s + "_robots" + std::to_string(info.param.robots);
+}
+
+class RbcdReachesOptimum : public testing::TestWithParam<Case> {};
+
+TEST_P(RbcdReachesOptimum, RoundedCostWithinRelativeGap) {
+    const Case c = GetParam();
+    const PoseGraphReadResult read =
+        ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + c.file);
+    ASSERT_TRUE(read.ok()) << read.error;
+    const PoseGraph& graph = read.graph;
+    const int rank = graph.d + 2;
+    const Eigen::MatrixXd X0 = LiftToRank(ChordalInitialization(graph), rank);
+    RbcdConfig config;
+    const RbcdResult result =
+        SolveRbcd(graph, ContiguousPartition(graph.n, c.robots), X0, config);
+    EXPECT_EQ(result.status, RbcdResult::Status::kConverged);
+    const PoseMatrix poses = RoundSolution(graph, result.X);
+    const double cost = Objective(graph, poses);
+    const double gap = (cost - c.f_star) / c.f_star;
+    std::printf("%s robots %d: iterations %d, rtr %d, lifted %.10f, rounded %.10f, f* %.10f, "
+                "gap %.2e, %.3f s\n",
+                c.file, c.robots, result.iterations, result.rtr_iterations, result.cost, cost,
+                c.f_star, gap, result.seconds);
+    EXPECT_LE(std::abs(gap), kRelGapTol);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    SmallFiles, RbcdReachesOptimum,
+    testing::Values(Case{"tinyGrid3D.g2o", 18.5193868731, 1}, Case{"tinyGrid3D.g2o", 18.5193868731, 3},
+                    Case{"smallGrid3D.g2o", 1025.39802075, 1},
+                    Case{"smallGrid3D.g2o", 1025.39802075, 5}, Case{"CSAIL.g2o", 31.7037159922, 1},
+                    Case{"CSAIL.g2o", 31.7037159922, 5}, Case{"MIT.g2o", 61.1541160916, 1},
+                    Case{"MIT.g2o", 61.1541160916, 5}, Case{"intel.g2o", 52.3482275928, 1},
+                    Case{"intel.g2o", 52.3482275928, 5}),
+    Name);
+
+}  // namespace
+}  // namespace certislam::slam

@@ -164,6 +164,11 @@ LoopDetectionResult DetectLoops(const std::vector<std::vector<Keyframe>>& robots
         if (truth.size() != robots.size()) {
             throw std::invalid_argument("ground-truth loop closures need the truth of every robot");
         }
+        const bool have_clouds = !robots.empty() && !robots[0].empty() && robots[0][0].cloud;
+        if (have_clouds) {
+            // Descriptors and Scan Context candidates are still real: their counts and bytes.
+            result.stats = VerifyAndReject(robots, config).stats;
+        }
         result.loops = GroundTruthLoops(truth, config);
     } else {
         result = VerifyAndReject(robots, config);

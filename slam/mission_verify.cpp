@@ -13,10 +13,20 @@ LoopDetectionResult VerifyAndReject(const std::vector<std::vector<Keyframe>>& ro
         for (const auto& kf : robots[r]) {
             descriptors[r].push_back(MakeScanContext(*kf.cloud, config.scan_context));
             ++result.stats.descriptors;
+            // Every descriptor goes to every peer (DESIGN.md: descriptors, not clouds).
+            result.stats.descriptor_bytes_sent +=
+                static_cast<std::int64_t>(SerializeScanContext(descriptors[r].back()).size()) *
+                static_cast<std::int64_t>(robots.size() - 1);
         }
     }
-    result.stats.candidates =
-        static_cast<int>(DetectCandidates(descriptors, robots, config).size());
+    const auto candidates = DetectCandidates(descriptors, robots, config);
+    result.stats.candidates = static_cast<int>(candidates.size());
+    for (const auto& c : candidates) {
+        // The querying robot asks the owner of the match for its cloud (float32 xyz).
+        if (c.query.robot == c.match.robot) continue;
+        result.stats.cloud_bytes_sent +=
+            static_cast<std::int64_t>(12 * robots[c.match.robot][c.match.index].cloud->size());
+    }
     return result;
 }
 

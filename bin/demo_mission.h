@@ -1,0 +1,66 @@
+// The demo's driver: simulate, run the pipeline, map, evaluate, write the files, report.
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace certislam::bin {
+
+/// Command-line options of `certislam demo`.
+struct DemoOptions {
+    int robots = 2;                    ///< robots in the simulated mission
+    std::string out_dir = "out/demo";  ///< where the files go ("" writes none)
+    std::uint64_t seed = 1;            ///< simulator seed
+    double voxel_m = 0.4;              ///< TSDF voxel of the fused mesh (0: no mesh)
+    bool ground_truth_loops = false;   ///< ground-truth loop closures (said loudly)
+    bool quiet = false;                ///< no progress bar
+    bool json = false;                 ///< JSON report on stdout
+};
+
+/// One row of Table I.
+struct DemoRobotRow {
+    int id = 0;                       ///< robot id
+    int keyframes = 0;                ///< keyframes of the robot
+    double odometry = 0.0;            ///< position RMSE of odometry alone, m
+    double one_time_alignment = 0.0;  ///< of the DiSCo-style one-time alignment, m
+    double local_search = 0.0;        ///< of local search from that guess, m
+    double certified = 0.0;           ///< of certified RBCD, m
+};
+
+/// Everything the demo reports.
+struct DemoReport {
+    bool ok = false;                      ///< the mission ran and wrote its files
+    std::vector<DemoRobotRow> robots;     ///< Table I
+    bool certified = false;               ///< certificate verdict of the certified solution
+    double lambda_min = 0.0;              ///< lambda_min(S)
+    double lambda_min_relative = 0.0;     ///< lambda_min / ||Q||
+    double suboptimality_bound = 0.0;     ///< f - (tr(Lambda) - eta d n)
+    double cost = 0.0;                    ///< f of the certified solution
+    double local_search_cost = 0.0;       ///< f of the local-search solution
+    bool local_search_certified = false;  ///< what the certificate says of local search
+    int rank = 0;                         ///< final relaxation rank
+    int rbcd_iterations = 0;              ///< RBCD iterations
+    int inter_robot_loops = 0;            ///< accepted inter-robot loop closures
+    int intra_robot_loops = 0;            ///< accepted intra-robot loop closures
+    int candidates = 0;                   ///< Scan Context candidates
+    std::int64_t bytes_sent = 0;          ///< bytes between robots (see bytes_note)
+    std::string bytes_note;               ///< how bytes_sent was obtained
+    double seconds = 0.0;                 ///< end to end, simulation included
+    double keyframes_per_second = 0.0;    ///< all keyframes / seconds
+    nlohmann::json timings;               ///< seconds per stage
+    std::string pipeline;                 ///< which path ran (actors or slam/mission directly)
+    std::string loop_source;              ///< "front end" or "ground truth (fallback)"
+    std::vector<std::string> warnings;    ///< fallbacks and anything else said loudly
+    std::string out_dir;                  ///< files written here
+};
+
+/// Runs the demo. Throws std::runtime_error when a file cannot be written.
+DemoReport RunDemoMission(const DemoOptions& options);
+
+/// The report as JSON (keys robots, certified, lambda_min, inter_robot_loops, bytes_sent,
+/// seconds, and the rest of DemoReport).
+nlohmann::json DemoReportJson(const DemoReport& report);
+
+}  // namespace certislam::bin

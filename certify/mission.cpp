@@ -1,5 +1,5 @@
 // The multi-robot pipeline: loops, joint graph, baselines, certified RBCD (paper Sec. II).
-#include "slam/mission.h"
+#include "certify/mission.h"
 
 #include <chrono>
 #include <stdexcept>
@@ -12,7 +12,8 @@
 #include "slam/rounding.h"
 #include "slam/stiefel.h"
 
-namespace certislam::slam {
+namespace certislam::certify {
+using namespace slam;  // NOLINT(google-build-using-namespace): the pipeline is all slam types
 namespace {
 
 void Require(bool ok, const std::string& what, double value, const std::string& rule) {
@@ -230,4 +231,4 @@ MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
     return result;
 }
 
-}  // namespace certislam::slam
+}  // namespace certislam::certify

@@ -16,7 +16,7 @@
 #include "slam/rbcd.h"
 #include "slam/trajectory.h"
 
-namespace certislam::slam {
+namespace certislam::certify {
 
 /// Weights of the edges of the joint graph, from standard deviations (MATH.md's rules for an
 /// isotropic information matrix: tau = 1 / sigma_t^2, kappa = 1 / (2 sigma_r^2)).
@@ -32,10 +32,10 @@ struct EdgeNoiseConfig {
 
 /// The back end's settings.
 struct MissionSolverConfig {
-    int rank = 5;                            ///< relaxation rank r >= 3 of certified RBCD
-    RbcdConfig rbcd;                         ///< RBCD (one block per robot)
-    certify::CertificateConfig certificate;  ///< the certifier
-    int max_staircase_steps = 3;             ///< saddle escapes (rank r -> r+1) at most, >= 0
+    int rank = 5;                   ///< relaxation rank r >= 3 of certified RBCD
+    slam::RbcdConfig rbcd;          ///< RBCD (one block per robot)
+    CertificateConfig certificate;  ///< the certifier
+    int max_staircase_steps = 3;    ///< saddle escapes (rank r -> r+1) at most, >= 0
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -43,9 +43,9 @@ struct MissionSolverConfig {
 
 /// Everything the pipeline depends on.
 struct MissionConfig {
-    EdgeNoiseConfig noise;       ///< edge weights
-    LoopDetectionConfig loops;   ///< Scan Context, verification, outlier rejection
-    MissionSolverConfig solver;  ///< RBCD + certificate
+    EdgeNoiseConfig noise;            ///< edge weights
+    slam::LoopDetectionConfig loops;  ///< Scan Context, verification, outlier rejection
+    MissionSolverConfig solver;       ///< RBCD + certificate
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -53,14 +53,15 @@ struct MissionConfig {
 
 /// The solution of the joint graph by certified RBCD.
 struct JointSolution {
-    PoseMatrix poses;  ///< 3 x 4n, anchored: pose 0 = identity
-    RbcdResult::Status rbcd_status = RbcdResult::Status::kMaxIterations;  ///< last RBCD run
-    int rank = 0;                            ///< rank of the final (certified) run
-    int iterations = 0;                      ///< RBCD iterations over all staircase steps
-    int staircase_steps = 0;                 ///< saddle escapes taken
-    double cost = 0.0;                       ///< f of the rounded poses (SE-Sync objective)
-    double seconds = 0.0;                    ///< solve + certify
-    certify::CertificateResult certificate;  ///< of the final lifted point
+    slam::PoseMatrix poses;  ///< 3 x 4n, anchored: pose 0 = identity
+    slam::RbcdResult::Status rbcd_status =
+        slam::RbcdResult::Status::kMaxIterations;  ///< last RBCD run
+    int rank = 0;                                  ///< rank of the final (certified) run
+    int iterations = 0;                            ///< RBCD iterations over all staircase steps
+    int staircase_steps = 0;                       ///< saddle escapes taken
+    double cost = 0.0;                             ///< f of the rounded poses (SE-Sync objective)
+    double seconds = 0.0;                          ///< solve + certify
+    CertificateResult certificate;                 ///< of the final lifted point
 };
 
 /// What the pipeline gives: per-robot trajectories of the four methods, all but odometry in the
@@ -68,19 +69,19 @@ struct JointSolution {
 struct MissionResult {
     enum class Status { kOk, kNoInterRobotLoops, kNotCertified };
     Status status = Status::kOk;
-    std::vector<Trajectory> odometry;            ///< [robot], own odometry frames
-    std::vector<Trajectory> one_time_alignment;  ///< [robot], DiSCo-style first encounter
-    std::vector<Trajectory> local_search;        ///< [robot], local search from that guess
-    std::vector<Trajectory> certified;           ///< [robot], certified RBCD
-    std::vector<LoopClosure> loops;              ///< accepted loop closures, discovery order
-    LoopDetectionStats loop_stats;               ///< candidates, verified, rejected, ...
-    PoseGraph graph;                             ///< the joint graph, robots contiguous
+    std::vector<slam::Trajectory> odometry;            ///< [robot], own odometry frames
+    std::vector<slam::Trajectory> one_time_alignment;  ///< [robot], DiSCo-style first encounter
+    std::vector<slam::Trajectory> local_search;        ///< [robot], local search from that guess
+    std::vector<slam::Trajectory> certified;           ///< [robot], certified RBCD
+    std::vector<slam::LoopClosure> loops;              ///< accepted loop closures, discovery order
+    slam::LoopDetectionStats loop_stats;               ///< candidates, verified, rejected, ...
+    slam::PoseGraph graph;                             ///< the joint graph, robots contiguous
     JointSolution solution;                      ///< certified RBCD's solution and certificate
     double local_search_cost = 0.0;              ///< f at the local-search solution
-    certify::CertificateResult local_search_certificate;  ///< what the certificate says of it
-    std::vector<std::string> warnings;  ///< fallbacks taken (said loudly by the callers)
-    double front_end_seconds = 0.0;     ///< descriptors, detection, verification, rejection
-    double back_end_seconds = 0.0;      ///< baselines, RBCD, certificate
+    CertificateResult local_search_certificate;  ///< what the certificate says of it
+    std::vector<std::string> warnings;           ///< fallbacks taken (said loudly by the callers)
+    double front_end_seconds = 0.0;  ///< descriptors, detection, verification, rejection
+    double back_end_seconds = 0.0;   ///< baselines, RBCD, certificate
 };
 
 /// Progress through the pipeline: stage name and fraction done in [0, 1].
@@ -88,29 +89,31 @@ using MissionProgress = std::function<void(const std::string& stage, double frac
 
 /// Joint graph: per robot the odometry chain (i -> i+1 from consecutive odometry poses), then
 /// the loop closures; global index = robot offset + keyframe index, robots contiguous; ids set.
-PoseGraph BuildJointGraph(const std::vector<std::vector<Eigen::Isometry3d>>& odometry,
-                          const std::vector<LoopClosure>& loops, const EdgeNoiseConfig& noise);
+slam::PoseGraph BuildJointGraph(const std::vector<std::vector<Eigen::Isometry3d>>& odometry,
+                                const std::vector<slam::LoopClosure>& loops,
+                                const EdgeNoiseConfig& noise);
 
 /// Splits 3 x 4n poses into per-robot trajectories with the keyframes' stamps.
-std::vector<Trajectory> SplitTrajectories(const PoseGraph& graph, const PoseMatrix& poses,
-                                          const std::vector<std::vector<Keyframe>>& robots);
+std::vector<slam::Trajectory> SplitTrajectories(
+    const slam::PoseGraph& graph, const slam::PoseMatrix& poses,
+    const std::vector<std::vector<slam::Keyframe>>& robots);
 
 /// Certified RBCD on the joint graph (one block per robot): chordal initialisation lifted to
 /// rank r, RBCD, certificate, saddle escape at rank r+1 while not certified (Riemannian
 /// staircase), rounding, anchoring in pose 0's frame.
-JointSolution SolveCertifiedJoint(const PoseGraph& graph, const MissionSolverConfig& config);
+JointSolution SolveCertifiedJoint(const slam::PoseGraph& graph, const MissionSolverConfig& config);
 
 /// Local search from an initial guess (3 x 4n): RBCD at rank 3 (no relaxation, i.e.
 /// Riemannian trust region on SO(3)^n x R^3n from that guess, which stops at the nearest
 /// critical point, like LM). Returns anchored poses and their cost in *cost.
-PoseMatrix LocalSearchJoint(const PoseGraph& graph, const PoseMatrix& initial,
-                            const MissionSolverConfig& config, double* cost);
+slam::PoseMatrix LocalSearchJoint(const slam::PoseGraph& graph, const slam::PoseMatrix& initial,
+                                  const MissionSolverConfig& config, double* cost);
 
 /// Runs the whole pipeline on keyframes (`robots[k][i]`, clouds needed unless the loop source
 /// is ground truth). `truth` (T_world_sensor per robot and keyframe) is used only by the
 /// ground-truth loop fallback; pass {} otherwise.
-MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
+MissionResult RunMission(const std::vector<std::vector<slam::Keyframe>>& robots,
                          const std::vector<std::vector<Eigen::Isometry3d>>& truth,
                          const MissionConfig& config, const MissionProgress& progress = {});
 
-}  // namespace certislam::slam
+}  // namespace certislam::certify

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <numbers>
 #include <random>
+#include <sstream>
 #include <string>
 
 #include "slam/cloud_io.h"
@@ -31,15 +32,26 @@ PointCloud Load(const std::string& relative) {
     return std::move(r.cloud);
 }
 
-// Reads `rows` rows of 4 (or 12 per line, KITTI) numbers into a 4x4 matrix list.
+// Reads KITTI-style 3x4 poses, one per line: skips '#' comments, a leading label ("Tr:") and a
+// leading frame index (13 numbers on a line).
 std::vector<Eigen::Isometry3d> ReadKittiPoses(const std::string& path) {
     std::ifstream in(path);
+    EXPECT_TRUE(in.good()) << path;
     std::vector<Eigen::Isometry3d> poses;
-    Eigen::Matrix<double, 3, 4> m;
-    while (in >> m(0, 0)) {
-        for (int k = 1; k < 12; ++k) in >> m(k / 4, k % 4);
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.empty() || line[0] == '#') continue;
+        std::istringstream fields(line);
+        std::vector<double> values;
+        std::string token;
+        while (fields >> token) {
+            if (token.back() == ':') continue;
+            values.push_back(std::stod(token));
+        }
+        if (values.size() != 12 && values.size() != 13) continue;
+        const std::size_t first = values.size() - 12;
         Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-        T.matrix().topRows<3>() = m;
+        for (int k = 0; k < 12; ++k) T.matrix()(k / 4, k % 4) = values[first + k];
         poses.push_back(T);
     }
     return poses;

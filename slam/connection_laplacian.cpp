@@ -23,7 +23,12 @@ Eigen::SparseMatrix<double> ConnectionLaplacian(const PoseGraph& graph) {
         omega.setZero();
         omega.diagonal().head(d).setConstant(e.weight * e.kappa);
         omega(d, d) = e.weight * e.tau;
-        const Eigen::MatrixXd ii = T * omega * T.transpose();
+        // SE-Sync's L(G~rho) puts kappa I on the tail's rotation block (not kappa R~ R~^T): the
+        // file's rotations are not exactly orthogonal (quaternions are not renormalised), and
+        // the reference optima f* are tr(X Q X^T) for this Q.
+        Eigen::MatrixXd ii = T * omega * T.transpose();
+        ii.topLeftCorner(d, d) +=
+            e.weight * e.kappa * (Eigen::MatrixXd::Identity(d, d) - e.R * e.R.transpose());
         const Eigen::MatrixXd ij = -T * omega;
         const int ci = BlockColumn(e.i, d);
         const int cj = BlockColumn(e.j, d);
@@ -50,8 +55,11 @@ double Objective(const PoseGraph& graph, const PoseMatrix& poses) {
         const auto ti = poses.col(BlockColumn(e.i, d) + d);
         const auto Rj = poses.block(0, BlockColumn(e.j, d), d, d);
         const auto tj = poses.col(BlockColumn(e.j, d) + d);
-        f += e.weight *
-             (e.kappa * (Rj - Ri * e.R).squaredNorm() + e.tau * (tj - ti - Ri * e.t).squaredNorm());
+        // ||R_j - R_i R~||^2 with ||R_i R~||^2 taken as ||R_i||^2 (= d for a rotation), as
+        // SE-Sync's Q does: identical when R~ is orthogonal, and the f* convention otherwise.
+        const double rot =
+            Rj.squaredNorm() + Ri.squaredNorm() - 2.0 * (Rj.cwiseProduct(Ri * e.R)).sum();
+        f += e.weight * (e.kappa * rot + e.tau * (tj - ti - Ri * e.t).squaredNorm());
     }
     return f;
 }

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Fuzzes the envelope decoder with libFuzzer (clang, ASan + UBSan) for a bounded time.
+# Usage: deploy/fuzz.sh [SECONDS]   (default 60; FUZZ_BUILD_DIR overrides build-fuzz/)
+# Builds only the fuzzer in its own clang build folder, writes a seed corpus of real encoded
+# envelopes, fuzzes for SECONDS and exits non-zero when the fuzzer finds a crash, a leak or
+# undefined behaviour (the input is kept in FUZZ_BUILD_DIR/artifacts/).
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+build="${FUZZ_BUILD_DIR:-$root/build-fuzz}"
+seconds="${1:-60}"
+
+"$root/deploy/install-deps.sh"
+
+sanitizers="-fsanitize=address,undefined -fno-sanitize-recover=undefined"
+mkdir -p "$build"
+if [ ! -f "$build/CMakeCache.txt" ]; then
+  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
+    -DCMAKE_C_FLAGS="-fsanitize=fuzzer-no-link $sanitizers" \
+    -DCMAKE_CXX_FLAGS="-fsanitize=fuzzer-no-link $sanitizers" \
+    -DCMAKE_EXE_LINKER_FLAGS="$sanitizers" \
+    -DCERTISLAM_FUZZ=ON -DCERTISLAM_BUILD_TESTS=OFF -DCERTISLAM_WERROR=ON \
+    >"$build/configure.log" 2>&1 || {
+    cat "$build/configure.log" >&2
+    exit 1
+  }
+fi
+cmake --build "$build" -j "${JOBS:-2}" --target fuzz_envelope fuzz_envelope_seeds
+
+seeds="$build/seeds"
+corpus="$build/corpus"
+artifacts="$build/artifacts"
+rm -rf "$seeds"
+mkdir -p "$corpus" "$artifacts"
+"$build/tests/fuzz/fuzz_envelope_seeds" "$seeds"
+
+echo "fuzz: envelope decoder for ${seconds} s (corpus $corpus, crashes in $artifacts)"
+# New inputs go to the first corpus folder; the seeds are read as well.
+"$build/tests/fuzz/fuzz_envelope" "$corpus" "$seeds" \
+  -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=8192 \
+  -artifact_prefix="$artifacts/" -print_final_stats=1

@@ -26,8 +26,15 @@ void PrintTable(const DemoReport& report) {
     std::printf("\ncertificate: %s   lambda_min %.3e (relative %.3e)   suboptimality bound %.3e\n",
                 report.certified ? "CERTIFIED (global optimum)" : "NOT certified",
                 report.lambda_min, report.lambda_min_relative, report.suboptimality_bound);
-    std::printf("local search: cost %.6g, certificate says %s\n", report.local_search_cost,
-                report.local_search_certified ? "globally optimal" : "not certified");
+    std::printf("certified RBCD: cost f = %.6g, rank %d, %d RBCD iterations\n", report.cost,
+                report.rank, report.rbcd_iterations);
+    for (const DemoLocalSearch* ls : {&report.local_search, &report.local_search_aligned}) {
+        std::printf(
+            "local search (LM from %s): %s in %d iterations, cost %.6g (%+.3g vs certified), "
+            "certificate: %s (lambda_min %.3e)\n",
+            ls->start.c_str(), ls->status.c_str(), ls->iterations, ls->cost, ls->gap,
+            ls->certified ? "globally optimal" : "NOT certified", ls->lambda_min);
+    }
     std::printf(
         "loops: %d inter-robot, %d intra-robot (%d Scan Context candidates)   "
         "bytes sent %lld   %.2f s (%.1f keyframes/s)\n",
@@ -44,6 +51,9 @@ int RunDemo(int argc, char** argv) {
     app.add_option("--robots", options.robots, "number of robots")->check(CLI::Range(1, 16));
     app.add_option("--out", options.out_dir, "output folder (trajectories, graph, mesh, plot)");
     app.add_option("--seed", options.seed, "simulator seed");
+    app.add_option("--keyframes", options.max_keyframes,
+                   "keyframes per robot at most (0: whole routes; small values for quick tests)")
+        ->check(CLI::NonNegativeNumber);
     app.add_option("--voxel", options.voxel_m, "TSDF voxel size of the fused mesh, m (0: none)");
     app.add_flag("--ground-truth-loops", options.ground_truth_loops,
                  "use ground-truth loop closures with noise instead of the front end (said so)");

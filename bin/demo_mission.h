@@ -13,10 +13,25 @@ struct DemoOptions {
     int robots = 2;                    ///< robots in the simulated mission
     std::string out_dir = "out/demo";  ///< where the files go ("" writes none)
     std::uint64_t seed = 1;            ///< simulator seed
+    int max_keyframes = 0;             ///< keyframes per robot at most (0: the whole route)
+    bool sequential = true;            ///< robot r starts when robot r-1 has finished
     double voxel_m = 0.4;              ///< TSDF voxel of the fused mesh (0: no mesh)
     bool ground_truth_loops = false;   ///< ground-truth loop closures (said loudly)
     bool quiet = false;                ///< no progress bar
     bool json = false;                 ///< JSON report on stdout
+};
+
+/// What one local-search (LM) run reached and what the certificate says of it.
+struct DemoLocalSearch {
+    std::string start;          ///< the initial guess, in words
+    std::string status;         ///< LM's outcome ("converged", "no convergence", "failed")
+    int iterations = 0;         ///< LM iterations
+    double initial_cost = 0.0;  ///< f at the guess
+    double cost = 0.0;          ///< f at the LM solution
+    double gap = 0.0;           ///< cost - f of the certified solution
+    bool certified = false;     ///< the certificate's verdict on the LM solution
+    double lambda_min = 0.0;    ///< lambda_min(S) at the LM solution
+    std::vector<double> rmse;   ///< [robot] position RMSE, m
 };
 
 /// One row of Table I.
@@ -31,29 +46,29 @@ struct DemoRobotRow {
 
 /// Everything the demo reports.
 struct DemoReport {
-    bool ok = false;                      ///< the mission ran and wrote its files
-    std::vector<DemoRobotRow> robots;     ///< Table I
-    bool certified = false;               ///< certificate verdict of the certified solution
-    double lambda_min = 0.0;              ///< lambda_min(S)
-    double lambda_min_relative = 0.0;     ///< lambda_min / ||Q||
-    double suboptimality_bound = 0.0;     ///< f - (tr(Lambda) - eta d n)
-    double cost = 0.0;                    ///< f of the certified solution
-    double local_search_cost = 0.0;       ///< f of the local-search solution
-    bool local_search_certified = false;  ///< what the certificate says of local search
-    int rank = 0;                         ///< final relaxation rank
-    int rbcd_iterations = 0;              ///< RBCD iterations
-    int inter_robot_loops = 0;            ///< accepted inter-robot loop closures
-    int intra_robot_loops = 0;            ///< accepted intra-robot loop closures
-    int candidates = 0;                   ///< Scan Context candidates
-    std::int64_t bytes_sent = 0;          ///< bytes between robots (see bytes_note)
-    std::string bytes_note;               ///< how bytes_sent was obtained
-    double seconds = 0.0;                 ///< end to end, simulation included
-    double keyframes_per_second = 0.0;    ///< all keyframes / seconds
-    nlohmann::json timings;               ///< seconds per stage
-    std::string pipeline;                 ///< which path ran (actors or slam/mission directly)
-    std::string loop_source;              ///< "front end" or "ground truth (fallback)"
-    std::vector<std::string> warnings;    ///< fallbacks and anything else said loudly
-    std::string out_dir;                  ///< files written here
+    bool ok = false;                       ///< the mission ran and wrote its files
+    std::vector<DemoRobotRow> robots;      ///< Table I
+    bool certified = false;                ///< certificate verdict of the certified solution
+    double lambda_min = 0.0;               ///< lambda_min(S)
+    double lambda_min_relative = 0.0;      ///< lambda_min / ||Q||
+    double suboptimality_bound = 0.0;      ///< f - (tr(Lambda) - eta d n)
+    double cost = 0.0;                     ///< f of the certified solution
+    DemoLocalSearch local_search;          ///< LM from odometry (Table I's local search)
+    DemoLocalSearch local_search_aligned;  ///< LM from the one-time alignment
+    int rank = 0;                          ///< final relaxation rank
+    int rbcd_iterations = 0;               ///< RBCD iterations
+    int inter_robot_loops = 0;             ///< accepted inter-robot loop closures
+    int intra_robot_loops = 0;             ///< accepted intra-robot loop closures
+    int candidates = 0;                    ///< Scan Context candidates
+    std::int64_t bytes_sent = 0;           ///< bytes between robots (see bytes_note)
+    std::string bytes_note;                ///< how bytes_sent was obtained
+    double seconds = 0.0;                  ///< end to end, simulation included
+    double keyframes_per_second = 0.0;     ///< all keyframes / seconds
+    nlohmann::json timings;                ///< seconds per stage
+    std::string pipeline;                  ///< which path ran (actors or slam/mission directly)
+    std::string loop_source;               ///< "front end" or "ground truth (fallback)"
+    std::vector<std::string> warnings;     ///< fallbacks and anything else said loudly
+    std::string out_dir;                   ///< files written here
 };
 
 /// Runs the demo. Throws std::runtime_error when a file cannot be written.

@@ -7,6 +7,7 @@
 #include "slam/check.h"
 #include "slam/chordal.h"
 #include "slam/connection_laplacian.h"
+#include "slam/lm_baseline.h"
 #include "slam/one_time_alignment.h"
 #include "slam/partition.h"
 #include "slam/rounding.h"
@@ -95,6 +96,7 @@ void MissionSolverConfig::Validate() const {
             max_staircase_steps, "must be >= 0");
     rbcd.Validate();
     certificate.Validate();
+    local_search.Validate();
 }
 
 void MissionConfig::Validate() const {
@@ -171,12 +173,20 @@ JointSolution SolveCertifiedJoint(const PoseGraph& graph, const MissionSolverCon
     return solution;
 }
 
-PoseMatrix LocalSearchJoint(const PoseGraph& graph, const PoseMatrix& initial,
-                            const MissionSolverConfig& config, double* cost) {
-    const RbcdResult rbcd = SolveRbcd(graph, Partition{{0, graph.n}}, initial, config.rbcd);
-    const PoseMatrix poses = Anchor(rbcd.X);
-    if (cost != nullptr) *cost = Objective(graph, poses);
-    return poses;
+LocalSearchRun LocalSearchJoint(const PoseGraph& graph, const PoseMatrix& initial,
+                                const MissionSolverConfig& config) {
+    const auto start = std::chrono::steady_clock::now();
+    const LmResult lm = SolveLm(graph, initial, config.local_search);
+    LocalSearchRun run;
+    run.poses = Anchor(lm.poses);
+    run.status = lm.status;
+    run.initial_cost = lm.initial_cost;
+    run.cost = Objective(graph, run.poses);
+    run.iterations = lm.iterations;
+    run.certificate =
+        certify::Certify(ConnectionLaplacian(graph), run.poses, 3, config.certificate);
+    run.seconds = Seconds(start);
+    return run;
 }
 
 MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
@@ -213,12 +223,13 @@ MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
                                       " met no aligned robot: it keeps its own frame");
         }
     }
-    report("local search", 0.6);
-    const PoseMatrix local =
-        LocalSearchJoint(result.graph, one_time_poses, config.solver, &result.local_search_cost);
-    result.local_search = SplitTrajectories(result.graph, local, robots);
-    result.local_search_certificate =
-        certify::Certify(ConnectionLaplacian(result.graph), local, 3, config.solver.certificate);
+    report("local search (LM)", 0.6);
+    result.local_search_from_odometry =
+        LocalSearchJoint(result.graph, FromIsometries(odometry), config.solver);
+    result.local_search_from_alignment =
+        LocalSearchJoint(result.graph, one_time_poses, config.solver);
+    result.local_search =
+        SplitTrajectories(result.graph, result.local_search_from_odometry.poses, robots);
     report("certified RBCD", 0.75);
     result.solution = SolveCertifiedJoint(result.graph, config.solver);
     result.certified = SplitTrajectories(result.graph, result.solution.poses, robots);

@@ -10,6 +10,7 @@
 
 #include "certify/certificate.h"
 #include "slam/keyframe.h"
+#include "slam/lm_baseline.h"
 #include "slam/loop_closure.h"
 #include "slam/mission_loops.h"
 #include "slam/pose_graph.h"
@@ -36,6 +37,7 @@ struct MissionSolverConfig {
     slam::RbcdConfig rbcd;          ///< RBCD (one block per robot)
     CertificateConfig certificate;  ///< the certifier
     int max_staircase_steps = 3;    ///< saddle escapes (rank r -> r+1) at most, >= 0
+    slam::LmConfig local_search;    ///< the local-search baseline (Levenberg-Marquardt, Ceres)
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -64,6 +66,17 @@ struct JointSolution {
     CertificateResult certificate;                 ///< of the final lifted point
 };
 
+/// One run of the local-search baseline (LM) from one initial guess, and its certificate.
+struct LocalSearchRun {
+    slam::PoseMatrix poses;  ///< 3 x 4n, anchored: pose 0 = identity
+    slam::LmResult::Status status = slam::LmResult::Status::kFailed;  ///< LM's outcome
+    double initial_cost = 0.0;                                        ///< f at the guess
+    double cost = 0.0;                                                ///< f at the LM solution
+    int iterations = 0;                                               ///< LM iterations
+    double seconds = 0.0;                                             ///< LM + certificate
+    CertificateResult certificate;  ///< what the certificate says of the LM solution
+};
+
 /// What the pipeline gives: per-robot trajectories of the four methods, all but odometry in the
 /// team frame (robot 0's odometry frame); odometry in each robot's own frame.
 struct MissionResult {
@@ -71,17 +84,20 @@ struct MissionResult {
     Status status = Status::kOk;
     std::vector<slam::Trajectory> odometry;            ///< [robot], own odometry frames
     std::vector<slam::Trajectory> one_time_alignment;  ///< [robot], DiSCo-style first encounter
-    std::vector<slam::Trajectory> local_search;        ///< [robot], local search from that guess
+    std::vector<slam::Trajectory> local_search;        ///< [robot], LM from odometry
     std::vector<slam::Trajectory> certified;           ///< [robot], certified RBCD
     std::vector<slam::LoopClosure> loops;              ///< accepted loop closures, discovery order
     slam::LoopDetectionStats loop_stats;               ///< candidates, verified, rejected, ...
     slam::PoseGraph graph;                             ///< the joint graph, robots contiguous
-    JointSolution solution;                      ///< certified RBCD's solution and certificate
-    double local_search_cost = 0.0;              ///< f at the local-search solution
-    CertificateResult local_search_certificate;  ///< what the certificate says of it
-    std::vector<std::string> warnings;           ///< fallbacks taken (said loudly by the callers)
-    double front_end_seconds = 0.0;  ///< descriptors, detection, verification, rejection
-    double back_end_seconds = 0.0;   ///< baselines, RBCD, certificate
+    JointSolution solution;  ///< certified RBCD's solution and certificate
+    /// Local search as the issue defines it: LM from odometry, every robot's odometry frame
+    /// taken as the team frame (what a robot knows before any alignment).
+    LocalSearchRun local_search_from_odometry;
+    /// LM from the one-time alignment (the DiSCo-style guess): the stronger local baseline.
+    LocalSearchRun local_search_from_alignment;
+    std::vector<std::string> warnings;  ///< fallbacks taken (said loudly by the callers)
+    double front_end_seconds = 0.0;     ///< descriptors, detection, verification, rejection
+    double back_end_seconds = 0.0;      ///< baselines, RBCD, certificate
 };
 
 /// Progress through the pipeline: stage name and fraction done in [0, 1].
@@ -103,11 +119,11 @@ std::vector<slam::Trajectory> SplitTrajectories(
 /// staircase), rounding, anchoring in pose 0's frame.
 JointSolution SolveCertifiedJoint(const slam::PoseGraph& graph, const MissionSolverConfig& config);
 
-/// Local search from an initial guess (3 x 4n): RBCD at rank 3 (no relaxation, i.e.
-/// Riemannian trust region on SO(3)^n x R^3n from that guess, which stops at the nearest
-/// critical point, like LM). Returns anchored poses and their cost in *cost.
-slam::PoseMatrix LocalSearchJoint(const slam::PoseGraph& graph, const slam::PoseMatrix& initial,
-                                  const MissionSolverConfig& config, double* cost);
+/// Local search from an initial guess (3 x 4n): Levenberg-Marquardt (slam::SolveLm) on the
+/// same objective, which stops at the nearest critical point; then the certificate at rank 3
+/// says whether that point is the global optimum. Poses anchored (pose 0 = identity).
+LocalSearchRun LocalSearchJoint(const slam::PoseGraph& graph, const slam::PoseMatrix& initial,
+                                const MissionSolverConfig& config);
 
 /// Runs the whole pipeline on keyframes (`robots[k][i]`, clouds needed unless the loop source
 /// is ground truth). `truth` (T_world_sensor per robot and keyframe) is used only by the

@@ -1,0 +1,383 @@
+// One robot's asynchronous RBCD state: local graph (own poses + neighbour poses its edges touch),
+// warm starts, alignment to the lower robot at first encounter, anchored rounding.
+#include "actors/solver_state.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "slam/partition.h"
+#include "slam/rounding.h"
+
+namespace certislam::actors {
+namespace {
+
+constexpr int kBlock = 4;  // d + 1 columns per pose (d = 3)
+
+/// Rows padded with zeros (or cut) to rank r: a rank-r' lifted pose embeds in rank r >= r'.
+Eigen::MatrixXd AtRank(const Eigen::MatrixXd& X, int r) {
+    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(r, X.cols());
+    const int rows = std::min<int>(r, static_cast<int>(X.rows()));
+    out.topRows(rows) = X.topRows(rows);
+    return out;
+}
+
+Eigen::MatrixXd Lift(const Eigen::Isometry3d& T, int r) {
+    Eigen::MatrixXd X = Eigen::MatrixXd::Zero(r, kBlock);
+    X.topLeftCorner<3, 3>() = T.linear();
+    X.block<3, 1>(0, 3) = T.translation();
+    return X;
+}
+
+bool SameEnds(const slam::LoopClosure& x, const slam::LoopClosure& y) {
+    return x.a == y.a && x.b == y.b;
+}
+
+}  // namespace
+
+Eigen::MatrixXd LiftedTimes(const Eigen::MatrixXd& X_a, const Eigen::Isometry3d& T) {
+    Eigen::MatrixXd out(X_a.rows(), kBlock);
+    out.leftCols<3>() = X_a.leftCols<3>() * T.linear();
+    out.col(3) = X_a.leftCols<3>() * T.translation() + X_a.col(3);
+    return out;
+}
+
+Eigen::Isometry3d LiftedRelative(const Eigen::MatrixXd& X_a, const Eigen::MatrixXd& X_b) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    const Eigen::MatrixXd Ya = X_a.leftCols<3>();
+    T.linear() = slam::ProjectToRotation(Ya.transpose() * X_b.leftCols<3>());
+    T.translation() = Ya.transpose() * (X_b.col(3) - X_a.col(3));
+    return T;
+}
+
+int ComponentAnchor(int robot, const std::vector<slam::LoopClosure>& inter_robot_loops) {
+    std::set<int> reached{robot};
+    for (bool grew = true; grew;) {
+        grew = false;
+        for (const auto& l : inter_robot_loops) {
+            const bool a = reached.count(l.a.robot) > 0, b = reached.count(l.b.robot) > 0;
+            if (a != b) {
+                reached.insert(a ? l.b.robot : l.a.robot);
+                grew = true;
+            }
+        }
+    }
+    return *reached.begin();
+}
+
+void SolverConfig::Validate() const {
+    if (rank < 3)
+        throw std::invalid_argument("SolverConfig.rank = " + std::to_string(rank) +
+                                    ": must be >= 3");
+    noise.Validate();
+    rbcd.Validate();
+}
+
+struct SolverState::Impl {
+    int robot = 0;
+    SolverConfig config;
+    int rank = 5;
+    int staircase_level = 0;
+    int frame_robot = 0;  ///< whose frame the block is in (self until aligned to a lower robot)
+    std::vector<Eigen::Isometry3d> odom;
+    Eigen::MatrixXd X;                            ///< r x 4n own block
+    std::vector<slam::LoopClosure> loops;         ///< every loop touching this robot
+    std::map<slam::PoseId, Eigen::MatrixXd> nbr;  ///< neighbours' last known lifted poses
+    std::optional<slam::RbcdAgent> agent;
+    std::vector<slam::PoseId> local_nbr;  ///< neighbour poses in the agent's local order
+    bool dirty = true;
+
+    int n() const { return static_cast<int>(odom.size()); }
+    bool Own(const slam::PoseId& id) const { return id.robot == robot; }
+    bool Active(const slam::LoopClosure& l) const {
+        return (!Own(l.a) || l.a.index < n()) && (!Own(l.b) || l.b.index < n());
+    }
+    Eigen::MatrixXd OwnPose(int k) const { return X.middleCols(kBlock * k, kBlock); }
+
+    slam::RelativePoseMeasurement Edge(int i, int j, const Eigen::Isometry3d& T, double kappa,
+                                       double tau) const {
+        slam::RelativePoseMeasurement m;
+        m.i = i;
+        m.j = j;
+        m.R = T.linear();
+        m.t = T.translation();
+        m.kappa = kappa;
+        m.tau = tau;
+        return m;
+    }
+    double OdomKappa() const {
+        const double s = config.noise.odometry_sigma_r_rad;
+        return 1.0 / (2.0 * s * s);
+    }
+    double OdomTau() const {
+        const double s = config.noise.odometry_sigma_t_m;
+        return 1.0 / (s * s);
+    }
+
+    /// Lifted pose of a neighbour pose: last heard, else predicted through the loop.
+    Eigen::MatrixXd NeighbourPose(const slam::PoseId& id) const {
+        if (auto it = nbr.find(id); it != nbr.end()) return AtRank(it->second, rank);
+        for (const auto& l : loops) {
+            if (!Active(l)) continue;
+            if (l.b == id && Own(l.a)) return LiftedTimes(OwnPose(l.a.index), l.T_a_b);
+            if (l.a == id && Own(l.b)) return LiftedTimes(OwnPose(l.b.index), l.T_a_b.inverse());
+        }
+        return Lift(Eigen::Isometry3d::Identity(), rank);
+    }
+
+    /// First encounter with a lower robot: move the whole block into its frame through the loop
+    /// (one rigid motion in the lifted space, DiSCo-style), so RBCD starts near the optimum.
+    void AlignToLowerRobot() {
+        for (const auto& l : loops) {
+            if (!Active(l) || !(l.a.robot != l.b.robot)) continue;
+            const slam::PoseId other = Own(l.a) ? l.b : l.a;
+            if (other.robot >= frame_robot || !nbr.count(other)) continue;
+            const int i = Own(l.a) ? l.a.index : l.b.index;
+            const Eigen::Isometry3d T_other_own = Own(l.a) ? l.T_a_b.inverse() : l.T_a_b;
+            const Eigen::MatrixXd X_i = LiftedTimes(AtRank(nbr.at(other), rank), T_other_own);
+            Eigen::MatrixXd moved(X.rows(), X.cols());
+            for (int k = 0; k < n(); ++k) {
+                moved.middleCols(kBlock * k, kBlock) =
+                    LiftedTimes(X_i, LiftedRelative(OwnPose(i), OwnPose(k)));
+            }
+            X = moved;
+            frame_robot = other.robot;
+            dirty = true;
+        }
+    }
+
+    void Rebuild() {
+        std::set<slam::PoseId> others;
+        for (const auto& l : loops) {
+            if (!Active(l)) continue;
+            if (!Own(l.a)) others.insert(l.a);
+            if (!Own(l.b)) others.insert(l.b);
+        }
+        local_nbr.assign(others.begin(), others.end());
+        std::map<slam::PoseId, int> local;
+        slam::PoseGraph graph;
+        graph.d = 3;
+        graph.n = n() + static_cast<int>(local_nbr.size());
+        for (int k = 0; k < n(); ++k) {
+            graph.ids.push_back({robot, k});
+            local[{robot, k}] = k;
+        }
+        for (size_t k = 0; k < local_nbr.size(); ++k) {
+            graph.ids.push_back(local_nbr[k]);
+            local[local_nbr[k]] = n() + static_cast<int>(k);
+        }
+        for (int k = 0; k + 1 < n(); ++k) {
+            auto e = Edge(k, k + 1, odom[k].inverse() * odom[k + 1], OdomKappa(), OdomTau());
+            e.is_known_inlier = true;
+            graph.edges.push_back(e);
+        }
+        for (const auto& l : loops) {
+            if (Active(l)) {
+                graph.edges.push_back(Edge(local.at(l.a), local.at(l.b), l.T_a_b, l.kappa, l.tau));
+            }
+        }
+        slam::Partition partition{{0, n()}};
+        if (!local_nbr.empty()) partition.begin.push_back(graph.n);
+        agent.emplace(graph, partition, 0, rank, config.rbcd);
+        agent->SetBlock(X);
+        dirty = false;
+    }
+
+    Eigen::MatrixXd NeighbourBlocks() const {
+        Eigen::MatrixXd out(rank, kBlock * static_cast<int>(local_nbr.size()));
+        for (size_t k = 0; k < local_nbr.size(); ++k) {
+            out.middleCols(kBlock * k, kBlock) = NeighbourPose(local_nbr[k]);
+        }
+        return out;
+    }
+
+    /// This robot's share of f: edges whose tail is an own pose (each edge counted once team-wide).
+    double OwnCost() const {
+        const auto pose = [&](const slam::PoseId& id) {
+            return Own(id) ? OwnPose(id.index) : NeighbourPose(id);
+        };
+        const auto term = [](const Eigen::MatrixXd& Xi, const Eigen::MatrixXd& Xj,
+                             const Eigen::Isometry3d& T, double kappa, double tau) {
+            const Eigen::MatrixXd Yi = Xi.leftCols<3>();
+            return kappa * (Xj.leftCols<3>() - Yi * T.linear()).squaredNorm() +
+                   tau * (Xj.col(3) - Xi.col(3) - Yi * T.translation()).squaredNorm();
+        };
+        double f = 0.0;
+        for (int k = 0; k + 1 < n(); ++k) {
+            f += term(OwnPose(k), OwnPose(k + 1), odom[k].inverse() * odom[k + 1], OdomKappa(),
+                      OdomTau());
+        }
+        for (const auto& l : loops) {
+            if (Active(l) && Own(l.a)) f += term(pose(l.a), pose(l.b), l.T_a_b, l.kappa, l.tau);
+        }
+        return f;
+    }
+};
+
+SolverState::SolverState(int robot, SolverConfig config) : impl_(std::make_unique<Impl>()) {
+    config.Validate();
+    impl_->robot = robot;
+    impl_->rank = config.rank;
+    impl_->frame_robot = robot;
+    impl_->config = std::move(config);
+    impl_->X.resize(impl_->rank, 0);
+}
+SolverState::~SolverState() = default;
+SolverState::SolverState(SolverState&&) noexcept = default;
+SolverState& SolverState::operator=(SolverState&&) noexcept = default;
+
+bool SolverState::AddKeyframe(int index, const Eigen::Isometry3d& T_odom) {
+    Impl& m = *impl_;
+    if (index != m.n()) return false;
+    Eigen::MatrixXd X_new =
+        m.odom.empty() ? Lift(T_odom, m.rank)
+                       : LiftedTimes(m.OwnPose(m.n() - 1), m.odom.back().inverse() * T_odom);
+    m.X.conservativeResize(m.rank, m.X.cols() + kBlock);
+    m.X.rightCols<kBlock>() = X_new;
+    m.odom.push_back(T_odom);
+    m.dirty = true;
+    return true;
+}
+
+bool SolverState::AddLoop(const slam::LoopClosure& loop) {
+    Impl& m = *impl_;
+    if (!m.Own(loop.a) && !m.Own(loop.b)) return false;
+    for (const auto& l : m.loops) {
+        if (SameEnds(l, loop)) return false;
+    }
+    m.loops.push_back(loop);
+    m.dirty = m.dirty || m.Active(loop);
+    return true;
+}
+
+void SolverState::SetNeighbourPoses(const PoseBlocks& poses) {
+    Impl& m = *impl_;
+    for (size_t k = 0; k < poses.ids.size(); ++k) {
+        if (m.Own(poses.ids[k])) continue;
+        m.nbr[poses.ids[k]] = poses.blocks.middleCols(kBlock * k, kBlock);
+    }
+}
+
+bool SolverState::AdoptBlock(const Eigen::MatrixXd& X_own, int staircase_level) {
+    Impl& m = *impl_;
+    if (X_own.cols() != m.X.cols() || X_own.rows() < m.rank) return false;
+    m.X = X_own;
+    m.rank = static_cast<int>(X_own.rows());
+    m.staircase_level = staircase_level;
+    m.dirty = true;
+    return true;
+}
+
+SolverStepResult SolverState::Step(double team_cost) {
+    Impl& m = *impl_;
+    SolverStepResult result;
+    if (m.n() == 0) return result;
+    const int frame_before = m.frame_robot;
+    m.AlignToLowerRobot();
+    if (m.dirty || m.frame_robot != frame_before) {
+        m.Rebuild();
+        result.rebuilt = true;
+    }
+    m.agent->SetNeighborPoses(m.NeighbourBlocks());
+    const double tol = m.config.rbcd.rel_grad_tol * std::max(1.0, team_cost);
+    const slam::RbcdAgentStatus s = m.agent->Update(tol);
+    m.X = m.agent->Block();
+    result.grad_norm = s.rtr_iterations == 0 ? s.grad_norm_before : s.grad_norm_after;
+    result.cost = m.OwnCost();
+    using A = slam::RbcdAgentStatus::Status;
+    result.status = s.status == A::kImproved    ? SolverStepResult::Status::kImproved
+                    : s.status == A::kConverged ? SolverStepResult::Status::kLocalOk
+                                                : SolverStepResult::Status::kStuck;
+    if (result.status != SolverStepResult::Status::kLocalOk && result.grad_norm <= tol) {
+        result.status = SolverStepResult::Status::kLocalOk;
+    }
+    return result;
+}
+
+PoseBlocks SolverState::PublicPoses(std::uint64_t iteration) const {
+    const Impl& m = *impl_;
+    std::set<int> indices;
+    if (m.n() > 0) indices.insert(0);
+    for (const auto& l : m.loops) {
+        if (!m.Active(l) || l.a.robot == l.b.robot) continue;
+        indices.insert(m.Own(l.a) ? l.a.index : l.b.index);
+    }
+    PoseBlocks out;
+    out.iteration = iteration;
+    out.staircase_level = m.staircase_level;
+    out.blocks.resize(m.rank, kBlock * static_cast<int>(indices.size()));
+    int k = 0;
+    for (int i : indices) {
+        out.ids.push_back({m.robot, i});
+        out.blocks.middleCols(kBlock * k++, kBlock) = m.OwnPose(i);
+    }
+    return out;
+}
+
+PoseBlocks SolverState::FullBlock(std::uint64_t iteration) const {
+    const Impl& m = *impl_;
+    PoseBlocks out;
+    out.iteration = iteration;
+    out.staircase_level = m.staircase_level;
+    out.blocks = m.X;
+    for (int i = 0; i < m.n(); ++i) out.ids.push_back({m.robot, i});
+    return out;
+}
+
+std::vector<Eigen::Isometry3d> SolverState::Trajectory(int anchor, int* anchor_used) const {
+    const Impl& m = *impl_;
+    std::vector<Eigen::Isometry3d> out;
+    if (m.n() == 0) return out;
+    Eigen::MatrixXd X0 = m.OwnPose(0);
+    int used = m.robot;
+    if (anchor != m.robot) {
+        if (auto it = m.nbr.find({anchor, 0}); it != m.nbr.end()) {
+            X0 = AtRank(it->second, m.rank);
+            used = anchor;
+        }
+    }
+    if (anchor_used != nullptr) *anchor_used = used;
+    for (int k = 0; k < m.n(); ++k) out.push_back(LiftedRelative(X0, m.OwnPose(k)));
+    return out;
+}
+
+std::set<int> SolverState::Neighbours() const {
+    std::set<int> out;
+    for (const auto& l : impl_->loops) {
+        if (l.a.robot != l.b.robot) out.insert(impl_->Own(l.a) ? l.b.robot : l.a.robot);
+    }
+    return out;
+}
+
+std::vector<slam::LoopClosure> SolverState::InterRobotLoops() const {
+    std::vector<slam::LoopClosure> out;
+    for (const auto& l : impl_->loops) {
+        if (l.inter_robot()) out.push_back(l);
+    }
+    return out;
+}
+
+std::vector<slam::LoopClosure> SolverState::OwnEdges() const {
+    const Impl& m = *impl_;
+    std::vector<slam::LoopClosure> out;
+    for (int k = 0; k + 1 < m.n(); ++k) {
+        slam::LoopClosure e;
+        e.a = {m.robot, k};
+        e.b = {m.robot, k + 1};
+        e.T_a_b = m.odom[k].inverse() * m.odom[k + 1];
+        e.kappa = m.OdomKappa();
+        e.tau = m.OdomTau();
+        out.push_back(e);
+    }
+    for (const auto& l : m.loops) {
+        if (m.Own(l.a) && m.Active(l)) out.push_back(l);
+    }
+    return out;
+}
+
+int SolverState::NumPoses() const { return impl_->n(); }
+int SolverState::Rank() const { return impl_->rank; }
+int SolverState::StaircaseLevel() const { return impl_->staircase_level; }
+int SolverState::robot() const { return impl_->robot; }
+
+}  // namespace certislam::actors

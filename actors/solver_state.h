@@ -1,0 +1,110 @@
+// One robot's asynchronous RBCD state, without sockets: its odometry chain and loop closures,
+// the last known poses of its neighbours, its lifted block, warm starts on every new edge, and
+// its trajectory anchored in the team frame. The solver actor is this plus messaging.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <vector>
+
+#include "actors/codec.h"
+#include "certify/mission.h"
+#include "slam/loop_closure.h"
+#include "slam/pose_graph.h"
+#include "slam/rbcd.h"
+
+namespace certislam::actors {
+
+/// Settings of one robot's solver.
+struct SolverConfig {
+    int rank = 5;                    ///< relaxation rank r, >= 3
+    certify::EdgeNoiseConfig noise;  ///< odometry edge weights (loops carry their own)
+    slam::RbcdConfig rbcd;           ///< block trust-region settings (rel_grad_tol used)
+
+    /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
+    void Validate() const;
+};
+
+/// What one Step did.
+struct SolverStepResult {
+    enum class Status {
+        kIdle,      ///< no poses yet
+        kImproved,  ///< the block moved
+        kLocalOk,   ///< block gradient below tolerance given the neighbours' last poses
+        kStuck,     ///< no step accepted above tolerance
+    };
+    Status status = Status::kIdle;
+    double grad_norm = 0.0;  ///< block Riemannian gradient norm after the step
+    double cost = 0.0;       ///< this robot's share of f (edges whose tail is its own pose)
+    bool rebuilt = false;    ///< the graph changed and the agent was rebuilt (warm start)
+};
+
+/// One robot's share of the team's pose graph and of RBCD.
+class SolverState {
+  public:
+    /// Robot `robot` with `config` (validated).
+    SolverState(int robot, SolverConfig config);
+    ~SolverState();
+    SolverState(SolverState&&) noexcept;
+    SolverState& operator=(SolverState&&) noexcept;
+
+    /// Adds own keyframe `index` at odometry pose T_odom; indices must arrive in order (a gap or a
+    /// repeat returns false and changes nothing). The new pose is predicted by odometry.
+    bool AddKeyframe(int index, const Eigen::Isometry3d& T_odom);
+    /// Adds a loop closure touching this robot (false when it does not, or is already known).
+    /// Inter-robot loops to poses not yet known are kept until both ends exist.
+    bool AddLoop(const slam::LoopClosure& loop);
+    /// Stores a neighbour's latest public poses (ids of other robots only; newer replace older).
+    void SetNeighbourPoses(const PoseBlocks& poses);
+    /// Replaces the own block with a lifted solution of rank >= r (the saddle escape's output):
+    /// blocks in own index order. Ignored unless its size matches the own poses.
+    bool AdoptBlock(const Eigen::MatrixXd& X_own, int staircase_level);
+
+    /// Rebuilds the agent if the graph changed, then a few trust-region steps on the block
+    /// against the neighbours' last known poses (RBCD Alg. 1 line 4, asynchronous).
+    /// `team_cost` scales the tolerance (rel_grad_tol * max(1, team_cost)).
+    SolverStepResult Step(double team_cost);
+
+    /// Own public poses (ends of inter-robot edges) and always own pose 0 (the anchor).
+    PoseBlocks PublicPoses(std::uint64_t iteration) const;
+    /// The whole own block (r x 4n) with own ids.
+    PoseBlocks FullBlock(std::uint64_t iteration) const;
+    /// Own poses rounded and expressed in the frame of `anchor`'s pose 0 when its lifted pose is
+    /// known (own pose 0 otherwise); `*anchor_used` tells which robot anchored them.
+    std::vector<Eigen::Isometry3d> Trajectory(int anchor, int* anchor_used) const;
+    /// Robots this one shares an edge with.
+    std::set<int> Neighbours() const;
+    /// Inter-robot loops known (own and pending), in arrival order.
+    std::vector<slam::LoopClosure> InterRobotLoops() const;
+    /// Every own edge as a loop-closure-shaped constraint (odometry and loops whose tail is own):
+    /// what a certifier needs to assemble the graph.
+    std::vector<slam::LoopClosure> OwnEdges() const;
+    /// Number of own keyframes.
+    int NumPoses() const;
+    /// Current rank of the block.
+    int Rank() const;
+    /// Saddle escapes adopted so far.
+    int StaircaseLevel() const;
+    /// This robot.
+    int robot() const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// The team frame of `robot`: the lowest robot id joined to it through inter-robot loops
+/// (itself when it has met nobody).
+int ComponentAnchor(int robot, const std::vector<slam::LoopClosure>& inter_robot_loops);
+
+/// The lifted pose X_a * T (r x 4): [Y R, Y t + p].
+Eigen::MatrixXd LiftedTimes(const Eigen::MatrixXd& X_a, const Eigen::Isometry3d& T);
+
+/// Pose of lifted block X_b in the frame of lifted block X_a: [proj(Y_a^T Y_b), Y_a^T (p_b - p_a)].
+Eigen::Isometry3d LiftedRelative(const Eigen::MatrixXd& X_a, const Eigen::MatrixXd& X_b);
+
+}  // namespace certislam::actors

@@ -1,0 +1,124 @@
+// SolverState: robots exchanging only public poses reach the centralised certified optimum
+// (certify::SolveCertifiedJoint on the same joint graph), in any update order, and a silent
+// robot does not stop the others.
+#include "actors/solver_state.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "tests/actors/solver_fixture.h"
+
+namespace certislam::actors {
+namespace {
+
+constexpr double kPoseTolerance = 1e-5;  ///< metres / radians-ish (matrix entries)
+constexpr int kMaxRounds = 3000;
+
+/// Runs rounds of Step + exchange until every robot is locally converged for 3 rounds in a row.
+/// `order` picks which robots step in a round (the asynchronous schedule).
+int RunUntilConverged(std::vector<SolverState>& robots,
+                      const std::function<std::vector<int>(int round)>& order) {
+    int quiet = 0;
+    for (int round = 0; round < kMaxRounds; ++round) {
+        double team_cost = 0.0;
+        bool all_ok = true;
+        for (int k : order(round)) {
+            const auto step = robots[k].Step(1.0);
+            team_cost += step.cost;
+            all_ok = all_ok && step.status == SolverStepResult::Status::kLocalOk;
+            for (auto& other : robots) {
+                if (other.robot() != k) other.SetNeighbourPoses(robots[k].PublicPoses(round));
+            }
+        }
+        quiet = all_ok ? quiet + 1 : 0;
+        if (quiet >= 3) return round;
+    }
+    return -1;
+}
+
+TEST(SolverState, TwoRobotsReachTheCentralCertifiedOptimum) {
+    const TwoRobotProblem problem = MakeTwoRobotProblem(40, 6, 3);
+    std::vector<SolverState> robots;
+    for (int k = 0; k < 2; ++k) robots.emplace_back(k, problem.config);
+    FeedProblem(problem, robots);
+    const int rounds = RunUntilConverged(robots, [](int) { return std::vector<int>{0, 1}; });
+    ASSERT_GE(rounds, 0) << "did not converge";
+    const auto central = CentralSolution(problem);
+    for (int k = 0; k < 2; ++k) {
+        int anchor = -1;
+        const auto traj = robots[k].Trajectory(0, &anchor);
+        EXPECT_EQ(anchor, 0);
+        ASSERT_EQ(traj.size(), central[k].size());
+        for (size_t i = 0; i < traj.size(); ++i) {
+            EXPECT_LT((traj[i].matrix() - central[k][i].matrix()).cwiseAbs().maxCoeff(),
+                      kPoseTolerance)
+                << "robot " << k << " pose " << i;
+        }
+    }
+}
+
+TEST(SolverState, RandomAsynchronousOrderReachesTheSameOptimum) {
+    const TwoRobotProblem problem = MakeTwoRobotProblem(30, 5, 11);
+    std::vector<SolverState> robots;
+    for (int k = 0; k < 2; ++k) robots.emplace_back(k, problem.config);
+    FeedProblem(problem, robots);
+    std::mt19937 rng(5);
+    // Robot 1 steps three times as often as robot 0, in random bursts.
+    const int rounds = RunUntilConverged(robots, [&](int) {
+        std::vector<int> order;
+        for (int i = 0; i < 4; ++i) order.push_back(rng() % 4 == 0 ? 0 : 1);
+        order.push_back(0);
+        order.push_back(1);
+        return order;
+    });
+    ASSERT_GE(rounds, 0);
+    const auto central = CentralSolution(problem);
+    for (int k = 0; k < 2; ++k) {
+        const auto traj = robots[k].Trajectory(0, nullptr);
+        for (size_t i = 0; i < traj.size(); ++i) {
+            EXPECT_LT((traj[i].matrix() - central[k][i].matrix()).cwiseAbs().maxCoeff(),
+                      kPoseTolerance);
+        }
+    }
+}
+
+TEST(SolverState, RobotWithoutEncounterKeepsItsOwnFrame) {
+    TwoRobotProblem problem = MakeTwoRobotProblem(20, 0, 2);
+    std::vector<SolverState> robots;
+    for (int k = 0; k < 2; ++k) robots.emplace_back(k, problem.config);
+    FeedProblem(problem, robots);
+    ASSERT_GE(RunUntilConverged(robots, [](int) { return std::vector<int>{0, 1}; }), 0);
+    const int team_frame = ComponentAnchor(1, robots[1].InterRobotLoops());
+    EXPECT_EQ(team_frame, 1);
+    int anchor = -1;
+    const auto traj = robots[1].Trajectory(team_frame, &anchor);
+    EXPECT_EQ(anchor, 1);
+    EXPECT_TRUE(traj[0].isApprox(Eigen::Isometry3d::Identity(), 1e-9));
+    EXPECT_TRUE(robots[1].Neighbours().empty());
+}
+
+TEST(SolverState, KeyframesOutOfOrderAndForeignLoopsAreRefused) {
+    SolverConfig config;
+    SolverState state(1, config);
+    EXPECT_FALSE(state.AddKeyframe(1, Eigen::Isometry3d::Identity()));
+    EXPECT_TRUE(state.AddKeyframe(0, Eigen::Isometry3d::Identity()));
+    slam::LoopClosure foreign;
+    foreign.a = {0, 1};
+    foreign.b = {2, 3};
+    EXPECT_FALSE(state.AddLoop(foreign));
+    slam::LoopClosure mine = foreign;
+    mine.b = {1, 0};
+    EXPECT_TRUE(state.AddLoop(mine));
+    EXPECT_FALSE(state.AddLoop(mine));  // duplicate
+    EXPECT_EQ(state.Neighbours(), std::set<int>{0});
+    EXPECT_EQ(ComponentAnchor(1, state.InterRobotLoops()), 0);
+    slam::LoopClosure far = foreign;
+    far.a = {2, 0};
+    far.b = {3, 0};
+    EXPECT_EQ(ComponentAnchor(3, {far}), 2);
+    EXPECT_EQ(ComponentAnchor(3, {}), 3);
+}
+
+}  // namespace
+}  // namespace certislam::actors

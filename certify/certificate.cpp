@@ -17,7 +17,8 @@ namespace {
 using SparseMatrix = Eigen::SparseMatrix<double>;
 using slam::BlockColumn;
 
-constexpr double kRoundingNoise = 1e-12;  ///< relative noise of a product X Q in doubles
+constexpr double kRoundingNoise = 1e-12;         ///< relative noise of a product X Q in doubles
+constexpr double kBoundRefinementFactor = 1e-2;  ///< eta step of the lower-bound refinement
 
 void Require(bool ok, const std::string& field, double value, const std::string& rule) {
     if (!ok) {
@@ -70,6 +71,7 @@ void CertificateConfig::Validate() const {
     Require(eigen_tolerance > 0.0, "eigen_tolerance", eigen_tolerance, "> 0");
     Require(eigen_max_iterations > 0, "eigen_max_iterations", eigen_max_iterations, "> 0");
     Require(eigen_subspace >= 3, "eigen_subspace", eigen_subspace, ">= 3");
+    Require(bound_refinements >= 0, "bound_refinements", bound_refinements, ">= 0");
 }
 
 std::vector<Eigen::MatrixXd> LambdaBlocks(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d) {
@@ -124,9 +126,14 @@ CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d
     result.duality_gap = result.cost - result.dual_value;
     result.q_norm = NormUpperBound(Q);
     result.eta = config.eta_relative * result.q_norm;
-    result.suboptimality_bound = result.duality_gap + result.eta * d * n;
-    result.relative_suboptimality_bound =
-        result.cost > 0.0 ? result.suboptimality_bound / result.cost : 0.0;
+    const auto set_bound = [&](double eta) {
+        result.bound_eta = eta;
+        result.lower_bound = result.dual_value - eta * d * n;
+        result.suboptimality_bound = result.cost - result.lower_bound;
+        result.relative_suboptimality_bound =
+            result.cost > 0.0 ? result.suboptimality_bound / result.cost : 0.0;
+    };
+    set_bound(result.eta);
     // Riemannian gradient = 2 X S: on rotation columns 2((XQ)_i - Y_i sym(Y_i^T (XQ)_i)).
     result.gradient_norm = 2.0 * (X * S).norm();
     // The second term is the rounding noise of X Q (it matters only where f(X) = 0).
@@ -143,6 +150,14 @@ CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d
         return finish(CertificateResult::Status::kNotCritical);
     }
     result.psd_at_eta = IsPsdAtEta(S, d, result.eta);  // the verdict (SE-Sync fast verification)
+    if (result.psd_at_eta) {
+        double eta = result.eta;
+        for (int k = 0; k < config.bound_refinements; ++k) {
+            eta *= kBoundRefinementFactor;
+            if (!IsPsdAtEta(S, d, eta)) break;
+            set_bound(eta);
+        }
+    }
     MinEigenpairConfig eig;
     eig.initial_shift = result.eta;
     eig.tolerance = config.eigen_tolerance;

@@ -69,7 +69,13 @@ StaircaseResult SolveCertified(const slam::PoseGraph& graph, const slam::Partiti
     while (true) {
         StaircaseLevel level;
         level.rank = static_cast<int>(result.X.rows());
-        const slam::RbcdResult solved = slam::SolveRbcd(graph, partition, result.X, config.rbcd);
+        const slam::RbcdResult solved = slam::SolveRbcd(
+            graph, partition, result.X, config.rbcd, [&](const slam::RbcdProgress& p) {
+                if (progress) {
+                    progress({"rbcd", level.rank, p.cost, p.grad_norm,
+                              result.certificate.lambda_min, Since(start)});
+                }
+            });
         result.X = solved.X;
         level.rbcd_iterations = solved.iterations;
         level.cost = solved.cost;

@@ -43,7 +43,7 @@ struct StaircaseLevel {
 
 /// Reported at each stage through the optional callback (a progress line for long runs).
 struct StaircaseProgress {
-    std::string stage;        ///< "solve", "certify" or "escape"
+    std::string stage;        ///< "rbcd" (each RBCD iteration), "solve", "certify" or "escape"
     int rank = 0;             ///< current r
     double cost = 0.0;        ///< current f(X)
     double grad_norm = 0.0;   ///< current ||grad f||

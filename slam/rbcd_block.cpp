@@ -52,7 +52,9 @@ Eigen::MatrixXd Hessian(const BlockProblem& p, const Iterate& it, const Eigen::M
 }
 
 Eigen::MatrixXd Precondition(const BlockProblem& p, const Iterate& it, const Eigen::MatrixXd& V) {
-    const Eigen::MatrixXd Z = p.precon->solve(V.transpose()).transpose();
+    // Column-major right-hand side: Eigen's sparse triangular solves are slow on row-major ones.
+    const Eigen::MatrixXd Vt = V.transpose();
+    const Eigen::MatrixXd Z = p.precon->solve(Vt).transpose();
     return ProjectToTangent(it.X, Z, p.d);
 }
 

@@ -1,0 +1,136 @@
+// SolvePoseGraph: chordal (or odometry) start, GNC-TLS when robust, the RBCD staircase (or LM),
+// SE-Sync rounding, and the certificate's bound for the rounded poses.
+#include "certify/pose_graph_solver.h"
+
+#include <chrono>
+#include <stdexcept>
+
+#include "slam/chordal.h"
+#include "slam/connection_laplacian.h"
+#include "slam/partition.h"
+#include "slam/rounding.h"
+
+namespace certislam::certify {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Result = PoseGraphSolverResult;
+
+double Since(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+Result::Status FromCertificate(CertificateResult::Status s) {
+    switch (s) {
+        case CertificateResult::Status::kCertified:
+            return Result::Status::kCertified;
+        case CertificateResult::Status::kNotCertified:
+            return Result::Status::kNotCertified;
+        default:
+            return Result::Status::kNoVerdict;
+    }
+}
+
+// The certificate's lower bound applies to any estimate of the same graph: the bound of the
+// rounded poses is their cost minus it.
+void SetCertificate(const CertificateResult& certificate, Result* result) {
+    result->certificate = certificate;
+    result->status = FromCertificate(certificate.status);
+    result->suboptimality_bound = result->cost - certificate.lower_bound;
+}
+
+slam::Partition MakePartition(const slam::PoseGraph& graph, int robots) {
+    return robots == 0 ? slam::PartitionFromIds(graph) : slam::ContiguousPartition(graph.n, robots);
+}
+
+void SolveWithLm(const slam::PoseGraph& graph, const PoseGraphSolverConfig& config,
+                 const PoseGraphSolverProgress& progress, Clock::time_point start, Result* result) {
+    const slam::PoseMatrix initial = slam::OdometryInitialization(graph);
+    const slam::LmResult lm = slam::SolveLm(graph, initial, config.lm);
+    if (progress) progress("lm", graph.d, lm.cost, 0.0, Since(start));
+    result->poses = lm.poses;
+    result->cost = lm.cost;
+    result->iterations = lm.iterations;
+    result->rank = graph.d;
+    const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(graph);
+    SetCertificate(Certify(Q, lm.poses, graph.d, config.staircase.certificate), result);
+    if (progress)
+        progress("certify", graph.d, lm.cost, result->certificate.gradient_norm, Since(start));
+}
+
+void SolveWithRbcd(const slam::PoseGraph& graph, const PoseGraphSolverConfig& config,
+                   const PoseGraphSolverProgress& progress, Clock::time_point start,
+                   Result* result) {
+    const int d = graph.d;
+    const int rank = config.rank == 0 ? d : config.rank;
+    const slam::Partition partition = MakePartition(graph, config.robots);
+    Eigen::MatrixXd X0 = slam::LiftToRank(slam::ChordalInitialization(graph), rank);
+    if (progress)
+        progress("chordal", rank, slam::LiftedCost(slam::ConnectionLaplacian(graph), X0), 0.0,
+                 Since(start));
+    if (config.robust) {
+        const slam::GncResult gnc = slam::SolveGnc(graph, partition, X0, config.gnc);
+        result->solved_graph = gnc.kept;
+        result->gnc_iterations = gnc.iterations;
+        X0 = gnc.X;
+        if (progress) progress("gnc", rank, 0.0, 0.0, Since(start));
+    }
+    const slam::PoseGraph& solved = result->solved_graph;
+    const StaircaseResult stairs =
+        SolveCertified(solved, partition, X0, config.staircase, [&](const StaircaseProgress& p) {
+            if (progress) progress(p.stage, p.rank, p.cost, p.grad_norm, Since(start));
+        });
+    result->poses = slam::RoundSolution(solved, stairs.X);
+    result->cost = slam::Objective(solved, result->poses);
+    result->rank = stairs.rank;
+    result->iterations = stairs.iterations;
+    result->escapes = stairs.escapes;
+    SetCertificate(stairs.certificate, result);
+}
+
+}  // namespace
+
+void PoseGraphSolverConfig::Validate() const {
+    if (robots < 0) {
+        throw std::invalid_argument("PoseGraphSolverConfig.robots = " + std::to_string(robots) +
+                                    ": must be >= 0 (0: the graph's own robots)");
+    }
+    if (rank < 0) {
+        throw std::invalid_argument("PoseGraphSolverConfig.rank = " + std::to_string(rank) +
+                                    ": must be 0 (the dimension d) or >= d");
+    }
+    if (robust && method == Method::kLm) {
+        throw std::invalid_argument(
+            "PoseGraphSolverConfig.robust = true: only with method rbcd (GNC runs on RBCD)");
+    }
+    staircase.Validate();
+    lm.Validate();
+    gnc.Validate();
+}
+
+Result SolvePoseGraph(const slam::PoseGraph& graph, const PoseGraphSolverConfig& config,
+                      const PoseGraphSolverProgress& progress) {
+    config.Validate();
+    if (config.rank != 0 && config.rank < graph.d) {
+        throw std::invalid_argument("PoseGraphSolverConfig.rank = " + std::to_string(config.rank) +
+                                    ": must be >= d = " + std::to_string(graph.d));
+    }
+    if (config.robots > graph.n) {
+        throw std::invalid_argument(
+            "PoseGraphSolverConfig.robots = " + std::to_string(config.robots) +
+            ": must be <= n = " + std::to_string(graph.n));
+    }
+    const auto start = Clock::now();
+    Result result;
+    result.solved_graph = graph;
+    if (config.method == PoseGraphSolverConfig::Method::kLm) {
+        SolveWithLm(graph, config, progress, start, &result);
+    } else {
+        SolveWithRbcd(graph, config, progress, start, &result);
+    }
+    result.edges_used = static_cast<int>(result.solved_graph.edges.size());
+    result.seconds = Since(start);
+    return result;
+}
+
+}  // namespace certislam::certify

@@ -167,7 +167,7 @@ LoopDetectionResult DetectLoops(const std::vector<std::vector<Keyframe>>& robots
         const bool have_clouds = !robots.empty() && !robots[0].empty() && robots[0][0].cloud;
         if (have_clouds) {
             // Descriptors and Scan Context candidates are still real: their counts and bytes.
-            result.stats = VerifyAndReject(robots, config).stats;
+            result.stats = CandidateStats(robots, config);
         }
         result.loops = GroundTruthLoops(truth, config);
     } else {

@@ -32,7 +32,7 @@ struct LoopDetectionConfig {
     double max_rmse_m = 0.3;            ///< registration: accept below this inlier RMSE, > 0
     double voxel_m = 0.4;               ///< registration downsampling, > 0
     bool reject_outliers = true;        ///< pairwise consistency (PCM) over the verified loops
-    double pcm_chi2_threshold = 16.27;  ///< PCM: chi-square 6 dof at 99.9 %, > 0
+    double pcm_chi2_threshold = 16.81;  ///< PCM: chi-square 6 dof at 99 %, > 0
     // Ground-truth fallback (LoopSource::kGroundTruth):
     double gt_max_distance_m = 3.0;  ///< pair keyframes closer than this in truth, > 0
     double gt_noise_t_m = 0.05;      ///< std of the translation noise added, >= 0

@@ -1,0 +1,418 @@
+// `certislam bench transport [--json]`: one-way latency and throughput of a large buffer over
+// inproc (zero-copy handle), ipc (shared memory, descriptor on an ipc:// socket, two processes),
+// tcp loopback (two processes) and ipc with the bytes on the socket, beside a plain memcpy.
+//
+// Every transport runs the same sender and receiver code over transport::Endpoint (PUSH/PULL):
+// the sender stamps CLOCK_MONOTONIC (the same clock in every process of the host) and sends; the
+// receiver spins briefly on a non-blocking Receive, then blocks in zmq_poll, stamps the arrival,
+// reads the first and last byte of the buffer, and acknowledges on a second edge. Latency: median
+// of arrival - send, one message in flight. Throughput: a window of messages in flight, bytes /
+// (last ack - first send).
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bin/command.h"
+#include "certislam/v1/control.pb.h"
+#include "certislam/v1/keyframe.pb.h"
+#include "transport/endpoint.h"
+#include "transport/shm_segment.h"
+
+namespace certislam::bin {
+namespace {
+
+using transport::Endpoint;
+using transport::EndpointConfig;
+using transport::Message;
+using transport::SharedBuffer;
+
+std::int64_t NowNs() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+}
+
+/// How the buffer crosses the edge.
+/// kIpcShmLoan: the producer wrote the bytes in the segment itself (ShmSegment::writable() as a
+/// loan), so nothing is copied; kIpcShm copies them from private memory first.
+enum class Mode { kInproc, kIpcShm, kIpcShmLoan, kIpcSocket, kTcp };
+
+const char* ModeName(Mode mode) {
+    switch (mode) {
+        case Mode::kInproc:
+            return "inproc";
+        case Mode::kIpcShm:
+            return "ipc-shm";
+        case Mode::kIpcShmLoan:
+            return "ipc-shm-loan";
+        case Mode::kIpcSocket:
+            return "ipc-socket";
+        case Mode::kTcp:
+            return "tcp";
+    }
+    return "?";
+}
+
+struct Row {
+    std::string transport;
+    std::size_t bytes = 0;
+    double latency_us = 0;
+    double throughput_gbps = 0;  // 1e9 bytes per second
+};
+
+struct Plan {
+    std::size_t bytes = 0;
+    int latency_messages = 0;
+    int throughput_messages = 0;
+    int window = 1;
+};
+
+double Median(std::vector<double> values) {
+    std::sort(values.begin(), values.end());
+    return values.empty() ? 0.0 : values[values.size() / 2];
+}
+
+EndpointConfig EdgeConfig(const char* edge, transport::Role role, const std::string& address,
+                          bool bind) {
+    EndpointConfig config;
+    config.edge = edge;
+    config.role = role;
+    (bind ? config.bind : config.connect).push_back(address);
+    config.delivery = transport::Delivery::kReliable;
+    config.send_timeout_ms = 30000;
+    config.max_queue_bytes = std::size_t{2} << 30;
+    return config;
+}
+
+// Polls a non-blocking Receive for up to kSpinNs (busy polling, as iceoryx does), yielding the
+// core between polls so that two waiting sides do not starve each other on a loaded machine,
+// then blocks in zmq_poll.
+constexpr std::int64_t kSpinNs = 2'000'000;
+
+Message SpinReceive(Endpoint& endpoint) {
+    const std::int64_t spin_until = NowNs() + kSpinNs;
+    while (NowNs() < spin_until) {
+        if (auto message = endpoint.Receive()) return std::move(*message);
+        std::this_thread::yield();
+    }
+    if (auto message = endpoint.Receive(std::chrono::milliseconds(60'000))) {
+        return std::move(*message);
+    }
+    throw std::runtime_error("bench transport: nothing received for 60 s");
+}
+
+// The receiver: acknowledges every buffer with its arrival time until a Shutdown arrives.
+void ReceiverLoop(zmq::context_t& context, const std::string& data_address,
+                  const std::string& ack_address) {
+    Endpoint data(context, EdgeConfig("bench", transport::Role::kPull, data_address, false));
+    Endpoint ack(context, EdgeConfig("bench-ack", transport::Role::kPush, ack_address, false));
+    transport::ShmReader reader;
+    v1::Heartbeat hello;
+    ack.Send(transport::Pack(hello));
+    while (true) {
+        Message message = SpinReceive(data);
+        const std::int64_t arrived = NowNs();
+        if (message.Is<v1::Shutdown>()) return;
+        const auto keyframe = transport::Unpack<v1::Keyframe>(message);
+        if (!keyframe || message.frames.size() != 1) throw std::runtime_error("bad bench message");
+        std::optional<transport::ShmView> view;
+        std::span<const std::byte> bytes = message.frames[0].span();
+        if (message.envelope.frames(0).kind() == v1::FRAME_KIND_SHM_DESCRIPTOR) {
+            v1::ShmDescriptor descriptor;
+            descriptor.ParseFromArray(bytes.data(), static_cast<int>(bytes.size()));
+            auto opened = reader.Open(transport::FromProto(descriptor));
+            if (!opened.ok()) throw std::runtime_error("shm open: " + opened.detail);
+            view = std::move(*opened.value);
+            bytes = view->bytes();
+        }
+        v1::Heartbeat reply;  // carries the first and last byte back: the bytes were read
+        reply.set_period_ms(std::to_integer<std::uint32_t>(bytes.front()) << 8 |
+                            std::to_integer<std::uint32_t>(bytes.back()));
+        view.reset();  // released before the ack: the sender may reuse the segment
+        reply.mutable_header()->set_sequence(keyframe->header().sequence());
+        reply.mutable_header()->set_stamp_ns(arrived);
+        ack.Send(transport::Pack(reply));
+    }
+}
+
+// The sending side of one transport: bound endpoints, the buffer, shared-memory segments.
+class Sender {
+  public:
+    Sender(zmq::context_t& context, Mode mode, const std::string& data_address,
+           const std::string& ack_address)
+        : mode_(mode),
+          data_(context, EdgeConfig("bench", transport::Role::kPush, data_address, true)),
+          ack_(context, EdgeConfig("bench-ack", transport::Role::kPull, ack_address, true)) {}
+
+    std::string data_address() const { return data_.bound_addresses().front(); }
+    std::string ack_address() const { return ack_.bound_addresses().front(); }
+    void WaitReceiver() { SpinReceive(ack_); }
+
+    Row Run(const Plan& plan) {
+        Prepare(plan);
+        for (int i = 0; i < 3; ++i) Send(plan.bytes, i % plan.window), Ack();  // warm-up
+        std::vector<double> latencies;
+        for (int i = 0; i < plan.latency_messages; ++i) {
+            const std::int64_t sent = Send(plan.bytes, i % plan.window);
+            latencies.push_back(static_cast<double>(Ack().header().stamp_ns() - sent) * 1e-3);
+        }
+        const std::int64_t start = NowNs();
+        int in_flight = 0;
+        for (int i = 0; i < plan.throughput_messages; ++i) {
+            if (in_flight == plan.window) Ack(), --in_flight;
+            Send(plan.bytes, i % plan.window);
+            ++in_flight;
+        }
+        while (in_flight-- > 0) Ack();
+        const double seconds = static_cast<double>(NowNs() - start) * 1e-9;
+        segments_.clear();
+        return Row{ModeName(mode_), plan.bytes, Median(latencies),
+                   static_cast<double>(plan.bytes) * plan.throughput_messages / seconds * 1e-9};
+    }
+
+    void Shutdown() { data_.Send(transport::Pack(v1::Shutdown{})); }
+
+  private:
+    bool UsesShm() const { return mode_ == Mode::kIpcShm || mode_ == Mode::kIpcShmLoan; }
+
+    void Prepare(const Plan& plan) {
+        std::vector<std::byte> bytes(plan.bytes);
+        for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = std::byte(i * 131u + 7u);
+        source_ = SharedBuffer::Adopt(std::move(bytes));
+        segments_.clear();
+        if (!UsesShm()) return;
+        for (int i = 0; i < plan.window; ++i) {
+            auto segment = transport::ShmSegment::Create(plan.bytes);
+            if (!segment.ok()) throw std::runtime_error("shm create: " + segment.detail);
+            // Faults the pages in; a loan holds the producer's bytes from the start.
+            auto writable = segment.value->writable();
+            if (mode_ == Mode::kIpcShmLoan) {
+                std::memcpy(writable.data(), source_.data(), plan.bytes);
+            } else {
+                std::memset(writable.data(), 0, plan.bytes);
+            }
+            segments_.push_back(std::move(*segment.value));
+        }
+    }
+
+    // Sends one buffer and returns its send stamp; ipc-shm copies it into segment `slot` first.
+    std::int64_t Send(std::size_t bytes, int slot) {
+        v1::Keyframe keyframe;
+        keyframe.mutable_header()->set_sequence(sequence_++);
+        const std::int64_t sent = NowNs();
+        keyframe.mutable_header()->set_stamp_ns(sent);
+        Message message = transport::Pack(keyframe);
+        if (UsesShm()) {
+            auto& segment = segments_[static_cast<std::size_t>(slot)];
+            while (!segment.Reusable()) {
+            }
+            if (mode_ == Mode::kIpcShm)
+                std::memcpy(segment.writable().data(), source_.data(), bytes);
+            const std::string descriptor =
+                transport::ToProto(segment.Publish(bytes)).SerializeAsString();
+            transport::AppendFrame(message,
+                                   SharedBuffer::Copy(descriptor.data(), descriptor.size()),
+                                   v1::FRAME_KIND_SHM_DESCRIPTOR);
+        } else {
+            transport::AppendFrame(message, source_);  // a handle: copied only by the socket
+        }
+        if (data_.Send(message) != transport::SendStatus::kSent) {
+            throw std::runtime_error("bench transport: send failed");
+        }
+        return sent;
+    }
+
+    v1::Heartbeat Ack() {
+        auto ack = transport::Unpack<v1::Heartbeat>(SpinReceive(ack_));
+        const std::uint32_t expected =
+            std::to_integer<std::uint32_t>(source_.data()[0]) << 8 |
+            std::to_integer<std::uint32_t>(source_.data()[source_.size() - 1]);
+        if (!ack || ack->period_ms() != expected) {
+            throw std::runtime_error("bench transport: bad ack (bytes not read back)");
+        }
+        return *ack;
+    }
+
+    Mode mode_;
+    Endpoint data_;
+    Endpoint ack_;
+    SharedBuffer source_;
+    std::vector<transport::ShmSegment> segments_;
+    std::uint64_t sequence_ = 0;
+};
+
+std::vector<Row> RunAll(Sender& sender, const std::vector<Plan>& plans) {
+    std::vector<Row> rows;
+    sender.WaitReceiver();
+    for (const auto& plan : plans) rows.push_back(sender.Run(plan));
+    sender.Shutdown();
+    return rows;
+}
+
+std::vector<Row> RunInproc(const std::vector<Plan>& plans) {
+    zmq::context_t context;
+    Sender sender(context, Mode::kInproc, "inproc://bench-data", "inproc://bench-ack");
+    std::exception_ptr failure;
+    std::thread receiver([&] {
+        try {
+            ReceiverLoop(context, "inproc://bench-data", "inproc://bench-ack");
+        } catch (...) {
+            failure = std::current_exception();
+        }
+    });
+    std::vector<Row> rows = RunAll(sender, plans);
+    receiver.join();
+    if (failure) std::rethrow_exception(failure);
+    return rows;
+}
+
+// Two processes: the child (forked before either side makes a ZeroMQ context) reads the
+// addresses the parent bound from a pipe, then runs the receiver.
+std::vector<Row> RunTwoProcesses(Mode mode, const std::vector<Plan>& plans) {
+    const auto dir =
+        std::filesystem::temp_directory_path() / ("certislam-bench-" + std::to_string(getpid()));
+    std::filesystem::create_directories(dir);
+    int fds[2];
+    if (pipe(fds) != 0) throw std::runtime_error("pipe failed");
+    const pid_t child = fork();
+    if (child < 0) throw std::runtime_error("fork failed");
+    if (child == 0) {
+        close(fds[1]);
+        char text[1024] = {};
+        std::size_t got = 0;
+        while (got < sizeof(text) - 1) {
+            const ssize_t n = read(fds[0], text + got, sizeof(text) - 1 - got);
+            if (n <= 0) break;
+            got += static_cast<std::size_t>(n);
+        }
+        const std::string both(text, got);
+        const auto split = both.find('\n');
+        int status = 0;
+        try {
+            zmq::context_t context;
+            ReceiverLoop(context, both.substr(0, split), both.substr(split + 1));
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "bench transport receiver: %s\n", e.what());
+            status = 1;
+        }
+        _exit(status);
+    }
+    close(fds[0]);
+    const bool tcp = mode == Mode::kTcp;
+    std::vector<Row> rows;
+    {
+        zmq::context_t context;
+        Sender sender(context, mode, tcp ? "tcp://127.0.0.1:*" : "ipc://" + (dir / "data").string(),
+                      tcp ? "tcp://127.0.0.1:*" : "ipc://" + (dir / "ack").string());
+        const std::string both = sender.data_address() + "\n" + sender.ack_address();
+        if (write(fds[1], both.data(), both.size()) != static_cast<ssize_t>(both.size())) {
+            throw std::runtime_error("pipe write failed");
+        }
+        close(fds[1]);
+        rows = RunAll(sender, plans);
+    }
+    int status = 0;
+    waitpid(child, &status, 0);
+    std::filesystem::remove_all(dir);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+        throw std::runtime_error(std::string("bench transport: receiver failed over ") +
+                                 ModeName(mode));
+    }
+    return rows;
+}
+
+Row RunMemcpy(const Plan& plan) {
+    std::vector<std::byte> source(plan.bytes, std::byte{1});
+    std::vector<std::byte> target(plan.bytes, std::byte{0});
+    std::vector<double> times;
+    for (int i = 0; i < plan.latency_messages + 3; ++i) {
+        source[static_cast<std::size_t>(i) % plan.bytes] = std::byte(i);
+        const std::int64_t start = NowNs();
+        std::memcpy(target.data(), source.data(), plan.bytes);
+        const std::int64_t stop = NowNs();
+        if (target[static_cast<std::size_t>(i) % plan.bytes] != std::byte(i))
+            throw std::logic_error("memcpy");
+        if (i >= 3) times.push_back(static_cast<double>(stop - start) * 1e-3);
+    }
+    const double us = Median(times);
+    return Row{"memcpy", plan.bytes, us, static_cast<double>(plan.bytes) / us * 1e-3};
+}
+
+std::vector<Plan> MakePlans(std::size_t max_bytes, double scale) {
+    const std::vector<Plan> all = {{1u << 10, 2000, 4000, 4},
+                                   {1u << 20, 300, 300, 4},
+                                   {10u << 20, 60, 60, 4},
+                                   {100u << 20, 9, 9, 2}};
+    std::vector<Plan> plans;
+    for (Plan plan : all) {
+        if (plan.bytes > max_bytes) continue;
+        plan.latency_messages = std::max(3, static_cast<int>(plan.latency_messages * scale));
+        plan.throughput_messages = std::max(3, static_cast<int>(plan.throughput_messages * scale));
+        plans.push_back(plan);
+    }
+    return plans;
+}
+
+void Print(const std::vector<Row>& rows, bool json) {
+    if (json) {
+        nlohmann::json out = nlohmann::json::array();
+        for (const auto& row : rows) {
+            out.push_back({{"transport", row.transport},
+                           {"bytes", row.bytes},
+                           {"latency_us", row.latency_us},
+                           {"throughput_gbps", row.throughput_gbps}});
+        }
+        std::printf("%s\n", out.dump(2).c_str());
+        return;
+    }
+    std::printf("%-13s %12s %14s %16s\n", "transport", "bytes", "latency_us", "throughput_GB/s");
+    for (const auto& row : rows) {
+        std::printf("%-13s %12zu %14.2f %16.3f\n", row.transport.c_str(), row.bytes, row.latency_us,
+                    row.throughput_gbps);
+    }
+}
+
+int RunTransportBench(int argc, char** argv) {
+    CLI::App app{
+        "One-way latency (median) and throughput (GB/s = 1e9 bytes/s) of 1 KB..100 MB buffers "
+        "over inproc (zero-copy), ipc-shm (shared memory, two processes), ipc-socket, tcp "
+        "loopback (two processes), and memcpy"};
+    app.name("certislam bench transport");
+    bool json = false;
+    std::size_t max_bytes = 100u << 20;
+    double scale = 1.0;
+    app.add_flag("--json", json,
+                 "print a JSON list of {transport, bytes, latency_us, throughput_gbps}");
+    app.add_option("--max-bytes", max_bytes, "largest buffer size to run");
+    app.add_option("--scale", scale, "multiply the message counts (e.g. 0.1 for a quick run)")
+        ->check(CLI::PositiveNumber);
+    CLI11_PARSE(app, argc, argv);
+
+    const std::vector<Plan> plans = MakePlans(max_bytes, scale);
+    std::vector<Row> rows;
+    for (const auto& plan : plans) rows.push_back(RunMemcpy(plan));
+    for (auto& row : RunInproc(plans)) rows.push_back(row);
+    for (Mode mode : {Mode::kIpcShm, Mode::kIpcShmLoan, Mode::kIpcSocket, Mode::kTcp}) {
+        for (auto& row : RunTwoProcesses(mode, plans)) rows.push_back(row);
+    }
+    Print(rows, json);
+    return 0;
+}
+
+const BenchRegistrar kRegistrar{
+    "transport", "one-way latency and throughput: inproc, ipc-shm, tcp, memcpy", RunTransportBench};
+
+}  // namespace
+}  // namespace certislam::bin

@@ -116,15 +116,28 @@ class BandUpdater {
     std::size_t updates_ = 0;
 };
 
-// Amanatides-Woo traversal of the voxels the ray crosses between depth -/+ truncation; each
-// gets the projective distance depth - (c - o).dir, clamped at +truncation, skipped below
-// -truncation.
-void CastRay(const Eigen::Vector3f& o, const Ray& ray, float voxel, float trunc, bool dropoff,
-             BandUpdater* up) {
+// The band one ray updates, in metres and (squared) voxel-centre distance from the ray.
+struct Band {
+    float voxel;      // voxel edge
+    float front;      // truncation in front of the hit (positive side)
+    float behind;     // extent behind the hit (negative side), <= front
+    float radius_sq;  // squared footprint radius: centres farther from the ray are skipped
+    bool dropoff;     // behind the hit, the weight falls linearly to 0 at -behind
+};
+
+// Amanatides-Woo traversal of the voxels the ray crosses between depth - front and
+// depth + behind. A crossed voxel is updated only when its centre c lies within the footprint
+// radius of the ray: the projective distance depth - (c - o).dir is the distance to the plane
+// through the hit perpendicular to the ray, which differs from the distance to the surface by
+// up to (offset of c from the ray) / tan(incidence); at grazing incidence an off-ray centre
+// next to the surface gets the wrong sign. Keeping centres within half a voxel of the ray
+// bounds that error by half a voxel (the accuracy the mesh promises).
+void CastRay(const Eigen::Vector3f& o, const Ray& ray, const Band& band, BandUpdater* up) {
+    const float voxel = band.voxel;
     const Eigen::Vector3f d = ray.end - o;
     const float depth = d.norm();
     const Eigen::Vector3f dir = d / depth;
-    const float t0 = std::max(depth - trunc, 0.0f), t1 = depth + trunc;
+    const float t0 = std::max(depth - band.front, 0.0f), t1 = depth + band.behind;
     const Eigen::Vector3f q0 = (o + t0 * dir) / voxel + Eigen::Vector3f::Constant(0.5f);
     std::array<int, 3> ijk, step;
     std::array<float, 3> t_max, t_delta;
@@ -140,12 +153,15 @@ void CastRay(const Eigen::Vector3f& o, const Ray& ray, float voxel, float trunc,
         t_delta[a] = voxel / std::abs(dir[a]);
     }
     while (true) {
-        const Eigen::Vector3f c(ijk[0] * voxel, ijk[1] * voxel, ijk[2] * voxel);
-        const float sdf = depth - (c - o).dot(dir);
-        if (sdf >= -trunc) {
+        const Eigen::Vector3f oc =
+            Eigen::Vector3f(ijk[0] * voxel, ijk[1] * voxel, ijk[2] * voxel) - o;
+        const float t = oc.dot(dir);
+        const float sdf = depth - t;
+        if (sdf >= -band.behind && oc.squaredNorm() - t * t <= band.radius_sq) {
             float w = ray.weight;
-            if (dropoff && sdf < -voxel) w *= (trunc + sdf) / (trunc - voxel);
-            if (w > 0.0f) up->Update({ijk[0], ijk[1], ijk[2]}, std::min(sdf, trunc), w);
+            // Curless & Levoy 1996: behind the surface the space is presumed, not observed.
+            if (band.dropoff && sdf < 0.0f) w *= (band.behind + sdf) / band.behind;
+            if (w > 0.0f) up->Update({ijk[0], ijk[1], ijk[2]}, std::min(sdf, band.front), w);
         }
         const int a =
             t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
@@ -162,6 +178,10 @@ void TsdfConfig::Validate() const {
             "in [0.01, 5]");
     Require(truncation_voxels >= 1.0 && truncation_voxels <= 20.0, "truncation_voxels",
             truncation_voxels, "in [1, 20]");
+    Require(behind_surface_voxels >= 0.5 && behind_surface_voxels <= truncation_voxels,
+            "behind_surface_voxels", behind_surface_voxels, "in [0.5, truncation_voxels]");
+    Require(ray_radius_voxels >= 0.1 && ray_radius_voxels <= 0.87, "ray_radius_voxels",
+            ray_radius_voxels, "in [0.1, 0.87] (0.87: every voxel the ray crosses)");
     Require(min_range_m >= 0.0, "min_range_m", min_range_m, ">= 0");
     Require(max_range_m > min_range_m && max_range_m <= 1000.0, "max_range_m", max_range_m,
             "> min_range_m and <= 1000");
@@ -224,15 +244,17 @@ TsdfIntegrateResult TsdfVolume::Integrate(const PointCloud& points,
         return result;
     }
     const float voxel = static_cast<float>(cfg.voxel_size_m);
-    const float trunc = static_cast<float>(cfg.truncation_m());
+    const float radius = static_cast<float>(cfg.ray_radius_voxels) * voxel;
+    const Band band{voxel, static_cast<float>(cfg.truncation_m()),
+                    static_cast<float>(cfg.behind_surface_voxels) * voxel, radius * radius,
+                    cfg.weight_dropoff};
     BandUpdater updater(*impl_);
     if (cfg.group_points_by_voxel) {
         const std::vector<Ray> rays = GroupByVoxel(ends, origin, 1.0f / voxel);
-        for (const Ray& r : rays) CastRay(origin, r, voxel, trunc, cfg.weight_dropoff, &updater);
+        for (const Ray& r : rays) CastRay(origin, r, band, &updater);
         result.rays_cast = rays.size();
     } else {
-        for (const auto& p : ends)
-            CastRay(origin, Ray{p, 1.0f}, voxel, trunc, cfg.weight_dropoff, &updater);
+        for (const auto& p : ends) CastRay(origin, Ray{p, 1.0f}, band, &updater);
         result.rays_cast = ends.size();
     }
     result.voxel_updates = updater.Finish();

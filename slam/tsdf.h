@@ -16,17 +16,25 @@ namespace certislam::slam {
 
 /// Settings of one TSDF volume. The defaults are the only defaults.
 struct TsdfConfig {
-    double voxel_size_m = 0.2;          ///< voxel edge, metres, in [0.01, 5]
-    double truncation_voxels = 3.0;     ///< half-width of the band updated around each hit, voxels,
-                                        ///< in [1, 20]; the truncation distance is this x voxel
+    double voxel_size_m = 0.2;       ///< voxel edge, metres, in [0.01, 5]
+    double truncation_voxels = 3.0;  ///< extent of the band updated in front of each hit, voxels,
+                                     ///< in [1, 20]; the truncation distance is this x voxel
+    double behind_surface_voxels = 2.0;  ///< extent of the band behind each hit, voxels, in
+                                         ///< [0.5, truncation_voxels]: behind a hit the space is
+                                         ///< presumed occupied, not observed; a deep band lets
+                                         ///< rays grazing one face of a corner carve negative
+                                         ///< distance into the free space past the corner
+    double ray_radius_voxels = 0.5;     ///< a ray updates only voxels whose centre lies within this
+                                        ///< distance of it, voxels, in [0.1, 0.87]: the projective
+                                        ///< distance of an off-ray centre errs by up to its offset
+                                        ///< at grazing incidence, so 0.5 bounds it by half a voxel
     double min_range_m = 0.5;           ///< hits nearer than this to the sensor are ignored, >= 0
     double max_range_m = 100.0;         ///< hits farther than this are ignored, > min_range_m
     float max_weight = 1.0e4f;          ///< the running-average weight saturates here, > 0
     bool group_points_by_voxel = true;  ///< merge the points that end in one voxel into a single
-                                        ///< ray (mean end point, weight = count) before casting
-    bool weight_dropoff = true;    ///< behind a hit (distance < -1 voxel) the weight falls linearly
-                                   ///< to 0 at -truncation (voxblox): grazing rays then bleed less
-                                   ///< negative distance into the free space beside surfaces
+                                        ///< ray (mean end point, weight 1) before casting
+    bool weight_dropoff = true;  ///< behind a hit the weight falls linearly from 1 at the hit to 0
+                                 ///< at -behind_surface (Curless & Levoy 1996's ramp)
     float min_mesh_weight = 0.5f;  ///< a cube is meshed only if all 8 corners weigh more, >= 0
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
@@ -79,8 +87,9 @@ class TsdfVolume {
     TsdfVolume Clone() const;
 
     /// Fuses one scan: `points` in the sensor frame, `T_volume_sensor` the sensor pose. Each
-    /// ray updates the voxels within truncation_m of its hit with the projective (along-ray)
-    /// distance, as a weighted running average (KinectFusion / VDBFusion update).
+    /// ray updates the voxels near it from truncation_m before its hit to behind_surface after
+    /// it with the projective (along-ray) distance, as a weighted running average
+    /// (KinectFusion / VDBFusion update).
     TsdfIntegrateResult Integrate(const PointCloud& points,
                                   const Eigen::Isometry3d& T_volume_sensor);
 

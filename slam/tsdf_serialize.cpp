@@ -11,12 +11,13 @@ namespace {
 
 static_assert(std::endian::native == std::endian::little, "the byte format is little-endian");
 
-constexpr char kMagic[8] = {'C', 'S', 'T', 'S', 'D', 'F', '0', '1'};
+constexpr char kMagic[8] = {'C', 'S', 'T', 'S', 'D', 'F', '0', '2'};
 
 // The settings as a fixed little-endian header (the grids carry no TsdfConfig).
 struct Header {
     char magic[8];
-    double voxel_size_m, truncation_voxels, min_range_m, max_range_m;
+    double voxel_size_m, truncation_voxels, behind_surface_voxels, ray_radius_voxels;
+    double min_range_m, max_range_m;
     float max_weight, min_mesh_weight;
     std::uint32_t group_points_by_voxel;
     std::uint32_t weight_dropoff;
@@ -25,8 +26,10 @@ struct Header {
 
 bool SameConfig(const TsdfConfig& a, const TsdfConfig& b) {
     return a.voxel_size_m == b.voxel_size_m && a.truncation_voxels == b.truncation_voxels &&
-           a.min_range_m == b.min_range_m && a.max_range_m == b.max_range_m &&
-           a.max_weight == b.max_weight && a.min_mesh_weight == b.min_mesh_weight &&
+           a.behind_surface_voxels == b.behind_surface_voxels &&
+           a.ray_radius_voxels == b.ray_radius_voxels && a.min_range_m == b.min_range_m &&
+           a.max_range_m == b.max_range_m && a.max_weight == b.max_weight &&
+           a.min_mesh_weight == b.min_mesh_weight &&
            a.group_points_by_voxel == b.group_points_by_voxel &&
            a.weight_dropoff == b.weight_dropoff;
 }
@@ -68,6 +71,8 @@ std::string TsdfVolume::Serialize() const {
     std::memcpy(h.magic, kMagic, sizeof kMagic);
     h.voxel_size_m = c.voxel_size_m;
     h.truncation_voxels = c.truncation_voxels;
+    h.behind_surface_voxels = c.behind_surface_voxels;
+    h.ray_radius_voxels = c.ray_radius_voxels;
     h.min_range_m = c.min_range_m;
     h.max_range_m = c.max_range_m;
     h.max_weight = c.max_weight;
@@ -93,6 +98,8 @@ std::optional<TsdfVolume> TsdfVolume::Deserialize(std::string_view bytes, std::s
     TsdfConfig c;
     c.voxel_size_m = h.voxel_size_m;
     c.truncation_voxels = h.truncation_voxels;
+    c.behind_surface_voxels = h.behind_surface_voxels;
+    c.ray_radius_voxels = h.ray_radius_voxels;
     c.min_range_m = h.min_range_m;
     c.max_range_m = h.max_range_m;
     c.max_weight = h.max_weight;

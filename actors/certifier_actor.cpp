@@ -1,0 +1,130 @@
+// Certifier: bundles in, joint Q and X assembled, certificate, report out, escape blocks out.
+#include "actors/certifier_actor.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "certify/saddle_escape.h"
+#include "slam/connection_laplacian.h"
+#include "slam/pose_graph.h"
+
+namespace certislam::actors {
+
+void CertifierConfig::Validate() const {
+    certificate.Validate();
+    if (max_staircase_steps < 0) {
+        throw std::invalid_argument("CertifierConfig.max_staircase_steps = " +
+                                    std::to_string(max_staircase_steps) + ": must be >= 0");
+    }
+    if (period.count() <= 0) throw std::invalid_argument("CertifierConfig.period: must be > 0");
+}
+
+CertifierActor::CertifierActor(zmq::context_t& context, TeamWiring wiring, CertifierConfig config)
+    : NodeActor("certifier", context, std::move(wiring)), config_(config) {
+    config_.Validate();
+}
+
+void CertifierActor::OnStart() {
+    out_ = &OpenServer(Edge::kCertify);
+    anchor_ = RobotId() == *std::min_element(Wiring().robots.begin(), Wiring().robots.end());
+    if (!anchor_) return;
+    for (int r : Wiring().robots) OpenClient(Edge::kBundle, r);
+    On(v1::SolverStatus::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto status = transport::Unpack<v1::SolverStatus>(m);
+        if (!status) return false;
+        pending_[int(status->header().robot_id())] = Bundle{*status, {}, {}};
+        return true;
+    });
+    On(v1::LoopClosure::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto proto = transport::Unpack<v1::LoopClosure>(m);
+        const auto edge = proto ? FromProto(*proto) : std::nullopt;
+        if (!edge) return false;
+        const auto it = pending_.find(int(proto->header().robot_id()));
+        if (it != pending_.end()) it->second.edges.push_back(*edge);
+        return true;
+    });
+    On(v1::PublicPoses::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto proto = transport::Unpack<v1::PublicPoses>(m);
+        auto block = proto ? FromProto(*proto) : std::nullopt;
+        const int robot = proto ? int(proto->header().robot_id()) : -1;
+        if (!block) return false;
+        const auto it = pending_.find(robot);
+        if (it == pending_.end()) return true;  // joined mid-bundle: wait for the next one
+        it->second.block = std::move(*block);
+        bundles_[robot] = std::move(it->second);
+        pending_.erase(it);
+        dirty_ = true;
+        return true;
+    });
+    Every(config_.period, [this] { Tick(); });
+}
+
+void CertifierActor::Tick() {
+    if (!dirty_ || bundles_.size() != Wiring().robots.size()) return;
+    // Every robot final, at one rank, its block covering its poses.
+    std::map<int, int> offset;
+    slam::PoseGraph graph;
+    const int rank = static_cast<int>(bundles_.begin()->second.block.blocks.rows());
+    for (const auto& [robot, b] : bundles_) {
+        if (b.status.phase() != v1::SolverStatus::PHASE_CONVERGED) return;
+        if (b.block.blocks.rows() != rank || b.block.ids.size() != b.status.num_poses()) return;
+        offset[robot] = graph.n;
+        for (const auto& id : b.block.ids) graph.ids.push_back(id);
+        graph.n += static_cast<int>(b.block.ids.size());
+    }
+    Eigen::MatrixXd X(rank, 4 * graph.n);
+    for (const auto& [robot, b] : bundles_)
+        X.middleCols(4 * offset[robot], b.block.blocks.cols()) = b.block.blocks;
+    const auto index = [&](const slam::PoseId& id) -> int {
+        const auto it = bundles_.find(id.robot);
+        if (it == bundles_.end() || id.index >= int(it->second.block.ids.size())) return -1;
+        return offset[id.robot] + id.index;
+    };
+    for (const auto& [robot, b] : bundles_) {
+        for (const auto& e : b.edges) {
+            slam::RelativePoseMeasurement m;
+            m.i = index(e.a);
+            m.j = index(e.b);
+            if (m.i < 0 || m.j < 0) return;  // a newer bundle of the other robot is on its way
+            m.R = e.T_a_b.linear();
+            m.t = e.T_a_b.translation();
+            m.kappa = e.kappa;
+            m.tau = e.tau;
+            graph.edges.push_back(m);
+        }
+    }
+    dirty_ = false;
+    const auto Q = slam::ConnectionLaplacian(graph);
+    const auto result = certify::Certify(Q, X, 3, config_.certificate);
+    ++checks_;
+    auto report = ToProto(result, static_cast<std::uint32_t>(rank));
+    *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    report.set_iteration(graph.edges.size());  // which graph: its edge count
+    Send(*out_, transport::Pack(report), true);
+    if (result.status == certify::CertificateResult::Status::kNotCertified &&
+        level_ < config_.max_staircase_steps) {
+        Escape(Q, X, result.eigenvector, result.gradient_tolerance);
+    }
+}
+
+void CertifierActor::Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
+                            const Eigen::VectorXd& v, double gradient_tolerance) {
+    const auto escaped = certify::EscapeSaddle(Q, X, 3, v, gradient_tolerance);
+    if (escaped.status != certify::EscapeResult::Status::kEscaped) return;
+    ++level_;
+    ++escapes_;
+    int column = 0;
+    for (const auto& [robot, b] : bundles_) {
+        PoseBlocks blocks;
+        blocks.ids = b.block.ids;
+        blocks.blocks = escaped.X.middleCols(column, b.block.blocks.cols());
+        blocks.staircase_level = level_;
+        column += static_cast<int>(b.block.blocks.cols());
+        auto proto = ToProto(blocks);
+        *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+        Send(*out_, transport::Pack(proto), true);
+    }
+    bundles_.clear();  // wait for blocks at the new rank
+}
+
+}  // namespace certislam::actors

@@ -1,0 +1,31 @@
+// Descriptor actor: Scan Context of each keyframe, published to the robot's loop matcher and to
+// its peers' (about 5 KB each instead of the cloud); forwards the end-of-stream marker.
+#pragma once
+
+#include "actors/node_actor.h"
+#include "slam/scan_context.h"
+
+namespace certislam::actors {
+
+/// Reason string of the Shutdown that ends a descriptor stream.
+inline constexpr const char* kEndOfDescriptors = "end of descriptors";
+
+/// Keyframe -> ScanContextDescriptor.
+class DescriptorActor final : public NodeActor {
+  public:
+    DescriptorActor(zmq::context_t& context, TeamWiring wiring, slam::ScanContextConfig config);
+    ~DescriptorActor() override { Stop(); }
+
+  protected:
+    void OnStart() override;
+    void OnStop() override { CloseEndpoints(); }
+
+  private:
+    void SendEnd();
+
+    slam::ScanContextConfig config_;
+    transport::Endpoint* out_ = nullptr;
+    bool ended_ = false;
+};
+
+}  // namespace certislam::actors

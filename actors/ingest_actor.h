@@ -1,0 +1,58 @@
+// Sensor ingest actor: pulls keyframes from a source (simulator, files) and publishes them on the
+// robot's keyframe stream once its local consumers have subscribed; then an end-of-stream marker.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <optional>
+
+#include "actors/node_actor.h"
+#include "slam/keyframe.h"
+
+namespace certislam::actors {
+
+/// The next keyframe of this robot, or nullopt at the end of the data.
+using KeyframeSource = std::function<std::optional<slam::Keyframe>()>;
+
+/// Reason string of the Shutdown that ends the keyframe stream.
+inline constexpr const char* kEndOfKeyframes = "end of keyframes";
+
+/// Settings of the ingest actor.
+struct IngestConfig {
+    int local_subscribers = 3;                         ///< wait for this many subscribers, >= 0
+    std::chrono::milliseconds period{2};               ///< one keyframe per period, > 0
+    std::chrono::milliseconds end_marker_period{500};  ///< end marker repeated this often, > 0
+
+    /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
+    void Validate() const;
+};
+
+/// Publishes Keyframe messages (cloud as a zero-copy frame) at most one per period.
+class IngestActor final : public NodeActor {
+  public:
+    IngestActor(zmq::context_t& context, TeamWiring wiring, KeyframeSource source,
+                IngestConfig config);
+    ~IngestActor() override { Stop(); }
+
+    /// True once the source is exhausted and the end marker sent.
+    bool Finished() const { return finished_.load(); }
+    /// Keyframes published so far.
+    int Published() const { return published_.load(); }
+
+  protected:
+    void OnStart() override;
+    void OnStop() override { CloseEndpoints(); }
+
+  private:
+    void Tick();
+    void SendEnd();
+
+    KeyframeSource source_;
+    IngestConfig config_;
+    transport::Endpoint* out_ = nullptr;
+    std::atomic<bool> finished_{false};
+    std::atomic<int> published_{0};
+};
+
+}  // namespace certislam::actors

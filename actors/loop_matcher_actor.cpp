@@ -1,0 +1,195 @@
+// Loop matcher: brute-force Scan Context over the (strided) pairs this robot owns, cloud
+// requests to lower robots, GICP verification, loop closures out.
+#include "actors/loop_matcher_actor.h"
+
+#include <stdexcept>
+#include <string>
+
+#include "actors/codec.h"
+#include "actors/descriptor_actor.h"
+#include "certislam/v1/control.pb.h"
+
+namespace certislam::actors {
+namespace {
+
+void Require(bool ok, const std::string& field, double value, const std::string& rule) {
+    if (!ok) {
+        throw std::invalid_argument("LoopMatcherConfig." + field + " = " + std::to_string(value) +
+                                    ": " + rule);
+    }
+}
+
+}  // namespace
+
+void LoopMatcherConfig::Validate() const {
+    Require(max_sc_distance > 0 && max_sc_distance <= 1, "max_sc_distance", max_sc_distance,
+            "must be in (0, 1]");
+    Require(query_stride >= 1, "query_stride", query_stride, "must be >= 1");
+    Require(min_intra_gap >= 1, "min_intra_gap", min_intra_gap, "must be >= 1");
+    Require(request_retry.count() > 0, "request_retry", request_retry.count(), "must be > 0");
+    registration.Validate();
+}
+
+LoopMatcherActor::LoopMatcherActor(zmq::context_t& context, TeamWiring wiring,
+                                   LoopMatcherConfig config)
+    : NodeActor("loop_matcher", context, std::move(wiring)), config_(std::move(config)) {
+    config_.Validate();
+}
+
+void LoopMatcherActor::OnStart() {
+    loops_out_ = &OpenServer(Edge::kLoops);
+    clouds_server_ = &OpenServer(Edge::kClouds, transport::Role::kRouter);
+    OpenClient(Edge::kKeyframes, RobotId());
+    for (int r : Wiring().robots) {
+        if (r > RobotId()) continue;  // pairs with higher robots are theirs to check
+        OpenClient(Edge::kDescriptors, r);
+        if (r < RobotId()) {
+            cloud_clients_[r] = &OpenClient(Edge::kClouds, r, transport::Role::kDealer);
+        }
+    }
+    On(v1::Keyframe::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto keyframe = DecodeKeyframe(m);
+        if (!keyframe || keyframe->robot != RobotId()) return false;
+        own_clouds_[keyframe->index] = keyframe->cloud;
+        return true;
+    });
+    On(v1::ScanContextDescriptor::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnDescriptor(m); });
+    On(v1::CloudRequest::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnCloudRequest(m); });
+    On(v1::CloudReply::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnCloudReply(m); });
+    On(v1::Shutdown::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto end = transport::Unpack<v1::Shutdown>(m);
+        if (!end) return false;
+        if (end->reason() == kEndOfDescriptors) ended_streams_.insert(end->header().robot_id());
+        return true;
+    });
+    Every(std::chrono::milliseconds(100), [this] { Tick(); });
+}
+
+bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
+    const auto proto = transport::Unpack<v1::ScanContextDescriptor>(m);
+    if (!proto) return false;
+    const auto id = FromProto(proto->pose_id());
+    auto sc = FromProto(*proto);
+    if (!id || !sc || id->robot > RobotId() || id->robot != int(proto->header().robot_id())) {
+        return false;
+    }
+    if (id->index % config_.query_stride != 0 || descriptors_.count(*id)) return true;
+    for (const auto& [other, other_sc] : descriptors_) {
+        // Own keyframe vs anything stored; a lower robot's keyframe vs own ones only.
+        const bool own_new = id->robot == RobotId(), own_other = other.robot == RobotId();
+        if (!own_new && !own_other) continue;
+        if (own_new && own_other &&
+            (!config_.intra_robot || id->index - other.index < config_.min_intra_gap)) {
+            continue;
+        }
+        const slam::PoseId query = own_new ? *id : other;
+        const slam::PoseId match = own_new ? other : *id;
+        const auto& q = own_new ? *sc : other_sc;
+        const auto& c = own_new ? other_sc : *sc;
+        const auto best = slam::ScanContextDistance(q, c);
+        if (best.distance < config_.max_sc_distance) Consider(query, match, best.yaw_rad);
+    }
+    descriptors_.emplace(*id, std::move(*sc));
+    return true;
+}
+
+void LoopMatcherActor::Consider(const slam::PoseId& query, const slam::PoseId& match,
+                                double yaw_rad) {
+    const Pending p{match, query, yaw_rad, std::chrono::steady_clock::now()};
+    if (!own_clouds_.count(query.index) ||
+        (match.robot == RobotId() && !own_clouds_.count(match.index))) {
+        deferred_.push_back(p);
+        return;
+    }
+    if (match.robot == RobotId()) {
+        Verify(query, match, yaw_rad, *own_clouds_.at(match.index));
+        return;
+    }
+    const std::uint64_t id = ++next_request_;
+    pending_[id] = p;
+    RequestCloud(id, p);
+}
+
+void LoopMatcherActor::RequestCloud(std::uint64_t id, const Pending& p) {
+    v1::CloudRequest request;
+    *request.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    *request.mutable_pose_id() = ToProto(p.match);
+    request.set_request_id(id);
+    Send(*cloud_clients_.at(p.match.robot), transport::Pack(request), true);
+}
+
+bool LoopMatcherActor::OnCloudRequest(const transport::Message& m) {
+    const auto request = transport::Unpack<v1::CloudRequest>(m);
+    if (!request) return false;
+    const auto id = FromProto(request->pose_id());
+    if (!id) return false;
+    v1::CloudReply reply;
+    *reply.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    *reply.mutable_pose_id() = request->pose_id();
+    reply.set_request_id(request->request_id());
+    slam::PointCloudPtr cloud;
+    if (id->robot == RobotId() && own_clouds_.count(id->index)) cloud = own_clouds_.at(id->index);
+    const auto message = EncodeCloudReply(reply, cloud);
+    if (clouds_server_->SendTo(m.peer, message) == transport::SendStatus::kSent) {
+        CountPeerBytes(message.ByteSize());
+    }
+    return true;
+}
+
+bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
+    v1::CloudReply reply;
+    const auto cloud = DecodeCloudReply(m, &reply);
+    if (!cloud) return transport::Unpack<v1::CloudReply>(m).has_value();  // not found: retried
+    const auto it = pending_.find(reply.request_id());
+    if (it == pending_.end()) return true;  // a duplicate reply to a retried request
+    const Pending p = it->second;
+    pending_.erase(it);
+    Verify(p.query, p.match, p.yaw_rad, **cloud);
+    return true;
+}
+
+void LoopMatcherActor::Verify(const slam::PoseId& query, const slam::PoseId& match, double yaw_rad,
+                              const slam::PointCloud& match_cloud) {
+    const auto result = slam::RegisterScans(*own_clouds_.at(query.index), match_cloud,
+                                            slam::YawGuess(yaw_rad), config_.registration);
+    if (!result.accepted()) {
+        ++rejected_;
+        return;
+    }
+    slam::LoopClosure loop;
+    loop.a = match;  // the lower robot's (or older own) keyframe is the tail
+    loop.b = query;
+    loop.T_a_b = result.T_target_source;
+    loop.kappa = result.kappa;
+    loop.tau = result.tau;
+    loop.fitness = result.inlier_rmse_m * result.inlier_rmse_m;
+    auto proto = ToProto(loop);
+    *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    Send(*loops_out_, transport::Pack(proto), loop.inter_robot());
+    ++loops_;
+}
+
+void LoopMatcherActor::Tick() {
+    auto deferred = std::move(deferred_);
+    deferred_.clear();
+    for (const auto& p : deferred) Consider(p.query, p.match, p.yaw_rad);
+    const auto now = std::chrono::steady_clock::now();
+    for (auto& [id, p] : pending_) {
+        if (now - p.sent < config_.request_retry) continue;
+        p.sent = now;
+        RequestCloud(id, p);  // the peer was silent or not there yet
+    }
+    bool done = pending_.empty() && deferred_.empty();
+    for (int r : Wiring().robots) done = done && (r > RobotId() || ended_streams_.count(r));
+    if (!done) return;
+    ended_ = true;
+    v1::Shutdown end;
+    *end.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    end.set_reason(kEndOfLoops);
+    Send(*loops_out_, transport::Pack(end), true);
+}
+
+}  // namespace certislam::actors

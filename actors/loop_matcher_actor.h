@@ -1,0 +1,86 @@
+// Loop matcher actor: Scan Context candidates between this robot's keyframes and its own earlier
+// ones or lower robots' (each pair checked once, by the higher robot, when the later of the two
+// descriptors arrives: the loop set does not depend on arrival order); the lower robot's cloud
+// is requested only for candidates; GICP seeded by the Scan Context yaw verifies; verified loops
+// go to both robots' solvers.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <map>
+#include <set>
+#include <vector>
+
+#include "actors/node_actor.h"
+#include "slam/loop_closure.h"
+#include "slam/registration.h"
+#include "slam/scan_context.h"
+
+namespace certislam::actors {
+
+/// Reason string of the Shutdown a matcher sends when it will find no more loops.
+inline constexpr const char* kEndOfLoops = "end of loops";
+
+/// Settings of the loop matcher.
+struct LoopMatcherConfig {
+    double max_sc_distance = 0.2;  ///< Scan Context distance accepting a candidate, (0, 1]
+    int query_stride = 3;          ///< only keyframes with index % stride == 0 take part, >= 1
+    int min_intra_gap = 40;        ///< keyframes between an intra-robot pair, >= 1
+    bool intra_robot = true;       ///< also close loops within the robot
+    slam::RegistrationConfig registration;          ///< verification
+    std::chrono::milliseconds request_retry{1000};  ///< cloud requests re-sent after this, > 0
+
+    /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
+    void Validate() const;
+};
+
+/// Scan Context + registration loop closures, inter-robot cloud exchange on request.
+class LoopMatcherActor final : public NodeActor {
+  public:
+    LoopMatcherActor(zmq::context_t& context, TeamWiring wiring, LoopMatcherConfig config);
+    ~LoopMatcherActor() override { Stop(); }
+
+    /// Loops published so far.
+    int LoopsFound() const { return loops_.load(); }
+    /// Candidates registration rejected so far.
+    int Rejected() const { return rejected_.load(); }
+    /// True once the end-of-loops marker went out.
+    bool Ended() const { return ended_.load(); }
+
+  protected:
+    void OnStart() override;
+    void OnStop() override { CloseEndpoints(); }
+
+  private:
+    struct Pending {
+        slam::PoseId match;  ///< lower robot's keyframe whose cloud is awaited
+        slam::PoseId query;  ///< own keyframe
+        double yaw_rad = 0.0;
+        std::chrono::steady_clock::time_point sent;
+    };
+
+    bool OnDescriptor(const transport::Message& m);
+    bool OnCloudRequest(const transport::Message& m);
+    bool OnCloudReply(const transport::Message& m);
+    void Consider(const slam::PoseId& query, const slam::PoseId& match, double yaw_rad);
+    void Verify(const slam::PoseId& query, const slam::PoseId& match, double yaw_rad,
+                const slam::PointCloud& match_cloud);
+    void RequestCloud(std::uint64_t id, const Pending& p);
+    void Tick();
+
+    LoopMatcherConfig config_;
+    transport::Endpoint* loops_out_ = nullptr;
+    transport::Endpoint* clouds_server_ = nullptr;
+    std::map<int, transport::Endpoint*> cloud_clients_;      ///< lower robot -> dealer
+    std::map<int, slam::PointCloudPtr> own_clouds_;          ///< own keyframe -> cloud
+    std::map<slam::PoseId, slam::ScanContext> descriptors_;  ///< own and lower robots'
+    std::map<std::uint64_t, Pending> pending_;               ///< request id -> candidate
+    std::vector<Pending> deferred_;  ///< own clouds not yet arrived (descriptor came first)
+    std::set<int> ended_streams_;    ///< robots whose stream ended
+    std::uint64_t next_request_ = 0;
+    std::atomic<int> loops_{0};
+    std::atomic<int> rejected_{0};
+    std::atomic<bool> ended_{false};
+};
+
+}  // namespace certislam::actors

@@ -1,0 +1,56 @@
+// A robot node: builds, starts and watches its actors.
+#include "actors/robot_node.h"
+
+namespace certislam::actors {
+
+void RobotNodeConfig::Validate() const {
+    ingest.Validate();
+    scan_context.Validate();
+    matcher.Validate();
+    solver.Validate();
+    certifier.Validate();
+    if (quiet.count() < 0) throw std::invalid_argument("RobotNodeConfig.quiet: must be >= 0");
+}
+
+RobotNode::RobotNode(zmq::context_t& context, TeamWiring wiring, KeyframeSource source,
+                     RobotNodeConfig config)
+    : robot_(wiring.robot), config_(std::move(config)) {
+    config_.Validate();
+    certifier_ = std::make_unique<CertifierActor>(context, wiring, config_.certifier);
+    solver_ = std::make_unique<SolverActor>(context, wiring, config_.solver);
+    matcher_ = std::make_unique<LoopMatcherActor>(context, wiring, config_.matcher);
+    descriptor_ = std::make_unique<DescriptorActor>(context, wiring, config_.scan_context);
+    ingest_ = std::make_unique<IngestActor>(context, wiring, std::move(source), config_.ingest);
+}
+
+RobotNode::~RobotNode() { Stop(); }
+
+void RobotNode::Start() {
+    certifier_->Start();
+    solver_->Start();
+    matcher_->Start();
+    descriptor_->Start();
+    ingest_->Start();
+}
+
+void RobotNode::Stop() {
+    ingest_->Stop();
+    descriptor_->Stop();
+    matcher_->Stop();
+    solver_->Stop();
+    certifier_->Stop();
+}
+
+bool RobotNode::Done() const {
+    const SolverSnapshot s = solver_->Snapshot();
+    if (!ingest_->Finished() || !s.final || !s.local_ok || !s.report) return false;
+    if (s.report->verdict() != v1::CERTIFICATE_VERDICT_CERTIFIED) return false;
+    return std::chrono::steady_clock::now() - s.changed > config_.quiet;
+}
+
+std::uint64_t RobotNode::BytesSentToPeers() const {
+    return descriptor_->BytesSentToPeers() + matcher_->BytesSentToPeers() +
+           solver_->BytesSentToPeers() + certifier_->BytesSentToPeers();
+}
+
+}  // namespace certislam::actors

@@ -1,0 +1,212 @@
+// Solver actor: messages in -> SolverState; ticks -> block updates -> public poses out.
+#include "actors/solver_actor.h"
+
+#include <stdexcept>
+
+#include "actors/codec.h"
+#include "actors/ingest_actor.h"
+#include "actors/loop_matcher_actor.h"
+#include "certislam/v1/control.pb.h"
+
+namespace certislam::actors {
+
+void SolverActorConfig::Validate() const {
+    solver.Validate();
+    if (tick.count() <= 0 || heartbeat.count() <= 0 || bundle_period.count() <= 0) {
+        throw std::invalid_argument("SolverActorConfig.tick/heartbeat/bundle_period: must be > 0");
+    }
+}
+
+SolverActor::SolverActor(zmq::context_t& context, TeamWiring wiring, SolverActorConfig config)
+    : NodeActor("solver", context, wiring), config_(config), state_(wiring.robot, config.solver) {
+    config_.Validate();
+}
+
+SolverSnapshot SolverActor::Snapshot() const {
+    std::lock_guard lock(snapshot_mutex_);
+    return snapshot_;
+}
+
+void SolverActor::OnStart() {
+    poses_out_ = &OpenServer(Edge::kPoses);
+    bundle_out_ = &OpenServer(Edge::kBundle);
+    Subscribe();
+    Every(config_.tick, [this] { Tick(); });
+    Every(config_.heartbeat, [this] { Heartbeat(); });
+    UpdateSnapshot();
+}
+
+void SolverActor::Subscribe() {
+    OpenClient(Edge::kKeyframes, RobotId());
+    for (int r : Wiring().robots) {
+        OpenClient(Edge::kLoops, r);
+        OpenClient(Edge::kCertify, r);
+        if (r != RobotId()) OpenClient(Edge::kPoses, r);
+    }
+    On(v1::Keyframe::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto proto = transport::Unpack<v1::Keyframe>(m);
+        const auto pose = proto ? FromProto(proto->t_odom_base()) : std::nullopt;
+        const auto id = proto ? FromProto(proto->pose_id()) : std::nullopt;
+        if (!pose || !id || id->robot != RobotId()) return false;
+        if (state_.AddKeyframe(id->index, *pose)) {
+            stamps_ns_.push_back(proto->header().stamp_ns());
+            Changed();
+        }
+        return true;
+    });
+    On(v1::LoopClosure::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto proto = transport::Unpack<v1::LoopClosure>(m);
+        const auto loop = proto ? FromProto(*proto) : std::nullopt;
+        if (!loop) return false;
+        if (state_.AddLoop(*loop)) Changed();
+        if (loop->inter_robot() && team_loop_ends_.insert({loop->a, loop->b}).second) {
+            team_loops_.push_back(*loop);
+        }
+        return true;
+    });
+    On(v1::Shutdown::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto end = transport::Unpack<v1::Shutdown>(m);
+        if (!end) return false;
+        if (end->reason() == kEndOfKeyframes && int(end->header().robot_id()) == RobotId()) {
+            bundle_dirty_ = bundle_dirty_ || !keyframes_ended_;
+            keyframes_ended_ = true;
+        }
+        if (end->reason() == kEndOfLoops &&
+            loops_ended_.insert(int(end->header().robot_id())).second) {
+            bundle_dirty_ = true;
+        }
+        return true;
+    });
+    On(v1::PublicPoses::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnPublicPoses(m); });
+    On(v1::SolverStatus::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto status = transport::Unpack<v1::SolverStatus>(m);
+        if (!status) return false;
+        team_cost_[int(status->header().robot_id())] = status->cost();
+        return true;
+    });
+    On(v1::CertificateReport::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto report = transport::Unpack<v1::CertificateReport>(m);
+        if (!report) return false;
+        report_ = *report;
+        return true;
+    });
+}
+
+bool SolverActor::OnPublicPoses(const transport::Message& m) {
+    const auto proto = transport::Unpack<v1::PublicPoses>(m);
+    const auto poses = proto ? FromProto(*proto) : std::nullopt;
+    if (!poses || poses->ids.empty()) return false;
+    if (poses->ids.front().robot == RobotId()) {
+        // A certifier's saddle escape: our whole block at rank r+1 (RBCD staircase).
+        if (poses->staircase_level > state_.StaircaseLevel() &&
+            state_.AdoptBlock(poses->blocks, poses->staircase_level)) {
+            Changed();
+        }
+        return true;
+    }
+    state_.SetNeighbourPoses(*poses);
+    work_ = true;
+    return true;
+}
+
+void SolverActor::Changed() {
+    work_ = true;
+    bundle_dirty_ = true;
+    changed_ = std::chrono::steady_clock::now();
+}
+
+void SolverActor::Tick() {
+    if (!work_ || state_.NumPoses() == 0) return;
+    double team_cost = 0.0;
+    for (const auto& [robot, cost] : team_cost_) team_cost += robot == RobotId() ? 0.0 : cost;
+    const SolverStepResult step = state_.Step(team_cost + team_cost_[RobotId()]);
+    ++steps_;
+    team_cost_[RobotId()] = step.cost;
+    grad_norm_ = step.grad_norm;
+    local_ok_ = step.status == SolverStepResult::Status::kLocalOk;
+    // Converged against the last poses heard: wait for news instead of spinning.
+    work_ = !local_ok_ && step.status != SolverStepResult::Status::kStuck;
+    if (!local_ok_) bundle_dirty_ = true;
+    if (!local_ok_ || step.rebuilt) Publish();
+    const auto now = std::chrono::steady_clock::now();
+    if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
+    UpdateSnapshot();
+}
+
+void SolverActor::Publish() {
+    auto poses = ToProto(state_.PublicPoses(steps_));
+    *poses.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    Send(*poses_out_, transport::Pack(poses), true);
+    v1::SolverStatus status;
+    *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    status.set_iteration(steps_);
+    status.set_phase(local_ok_ ? v1::SolverStatus::PHASE_CONVERGED
+                               : v1::SolverStatus::PHASE_ITERATING);
+    status.set_rank_r(static_cast<std::uint32_t>(state_.Rank()));
+    status.set_cost(team_cost_[RobotId()]);
+    status.set_gradient_norm(grad_norm_);
+    status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
+    Send(*poses_out_, transport::Pack(status), true);
+}
+
+void SolverActor::Heartbeat() {
+    if (state_.NumPoses() == 0) return;
+    Publish();
+    for (const auto& loop : state_.InterRobotLoops()) {
+        auto proto = ToProto(loop);  // late or restarted peers learn the loops they missed
+        *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+        Send(*poses_out_, transport::Pack(proto), true);
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (local_ok_ && (bundle_dirty_ || now - last_bundle_ > std::chrono::seconds(1))) SendBundle();
+    work_ = work_ || !local_ok_;
+    UpdateSnapshot();
+}
+
+void SolverActor::SendBundle() {
+    // Order on the stream: status, own edges, then the full block that closes the bundle.
+    v1::SolverStatus status;
+    *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    status.set_iteration(steps_);
+    bool final = keyframes_ended_;
+    for (int r : Wiring().robots) final = final && loops_ended_.count(r) > 0;
+    status.set_phase(final ? v1::SolverStatus::PHASE_CONVERGED : v1::SolverStatus::PHASE_ITERATING);
+    status.set_rank_r(static_cast<std::uint32_t>(state_.Rank()));
+    status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
+    status.set_gradient_norm(grad_norm_);
+    Send(*bundle_out_, transport::Pack(status), false);
+    for (const auto& edge : state_.OwnEdges()) {
+        auto proto = ToProto(edge);
+        *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+        Send(*bundle_out_, transport::Pack(proto), false);
+    }
+    auto block = ToProto(state_.FullBlock(steps_));
+    *block.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    Send(*bundle_out_, transport::Pack(block), false);
+    bundle_dirty_ = false;
+    last_bundle_ = std::chrono::steady_clock::now();
+}
+
+void SolverActor::UpdateSnapshot() {
+    SolverSnapshot s;
+    s.num_poses = state_.NumPoses();
+    s.final = keyframes_ended_;
+    for (int r : Wiring().robots) s.final = s.final && loops_ended_.count(r) > 0;
+    s.local_ok = local_ok_;
+    s.grad_norm = grad_norm_;
+    s.steps = steps_;
+    s.rank = state_.Rank();
+    s.staircase_level = state_.StaircaseLevel();
+    s.inter_robot_loops = static_cast<int>(state_.InterRobotLoops().size());
+    const auto poses = state_.Trajectory(ComponentAnchor(RobotId(), team_loops_), &s.anchor);
+    for (size_t i = 0; i < poses.size(); ++i) {
+        s.trajectory.push_back({static_cast<double>(stamps_ns_[i]) * 1e-9, poses[i]});
+    }
+    s.report = report_;
+    s.changed = changed_;
+    std::lock_guard lock(snapshot_mutex_);
+    snapshot_ = std::move(s);
+}
+
+}  // namespace certislam::actors

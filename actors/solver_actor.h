@@ -1,0 +1,94 @@
+// RBCD solver actor: owns this robot's block (SolverState), takes keyframes and loop closures,
+// exchanges public poses with its neighbours asynchronously (a silent neighbour's last known
+// poses are used), warm-starts on every new edge, and hands converged blocks to the certifier.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <vector>
+
+#include "actors/node_actor.h"
+#include "actors/solver_state.h"
+#include "certislam/v1/certificate.pb.h"
+#include "slam/trajectory.h"
+
+namespace certislam::actors {
+
+/// Settings of the solver actor.
+struct SolverActorConfig {
+    SolverConfig solver;                           ///< RBCD settings
+    std::chrono::milliseconds tick{2};             ///< a block update at most this often, > 0
+    std::chrono::milliseconds heartbeat{200};      ///< poses, status, loops re-sent this often
+    std::chrono::milliseconds bundle_period{300};  ///< converged block to the certifier, > 0
+
+    /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
+    void Validate() const;
+};
+
+/// What the solver knows now (a copy; thread-safe to take).
+struct SolverSnapshot {
+    int num_poses = 0;            ///< own keyframes
+    bool final = false;           ///< own keyframes ended and every matcher said end of loops
+    bool local_ok = false;        ///< block gradient below tolerance at the last step
+    double grad_norm = 0.0;       ///< block gradient norm at the last step
+    std::uint64_t steps = 0;      ///< block updates done
+    int rank = 0;                 ///< relaxation rank now
+    int staircase_level = 0;      ///< saddle escapes adopted
+    int anchor = 0;               ///< robot whose pose 0 anchors the trajectory
+    int inter_robot_loops = 0;    ///< inter-robot loops known
+    slam::Trajectory trajectory;  ///< own poses in the anchor's frame, with keyframe stamps
+    std::optional<v1::CertificateReport> report;    ///< last certificate heard
+    std::chrono::steady_clock::time_point changed;  ///< last change of the graph or rank
+};
+
+/// One robot's RBCD solver.
+class SolverActor final : public NodeActor {
+  public:
+    SolverActor(zmq::context_t& context, TeamWiring wiring, SolverActorConfig config);
+    ~SolverActor() override { Stop(); }
+
+    /// The state now (thread-safe).
+    SolverSnapshot Snapshot() const;
+
+  protected:
+    void OnStart() override;
+    void OnStop() override { CloseEndpoints(); }
+
+  private:
+    void Subscribe();
+    bool OnPublicPoses(const transport::Message& m);
+    void Tick();
+    void Heartbeat();
+    void SendBundle();
+    void Publish();
+    void UpdateSnapshot();
+    void Changed();
+
+    SolverActorConfig config_;
+    SolverState state_;
+    transport::Endpoint* poses_out_ = nullptr;
+    transport::Endpoint* bundle_out_ = nullptr;
+    std::vector<std::int64_t> stamps_ns_;
+    std::map<int, double> team_cost_;            ///< robot -> its share of f, last heard
+    std::set<int> loops_ended_;                  ///< matchers that said end of loops
+    std::vector<slam::LoopClosure> team_loops_;  ///< every inter-robot loop heard (team frame)
+    std::set<std::pair<slam::PoseId, slam::PoseId>> team_loop_ends_;
+    bool keyframes_ended_ = false;
+    bool work_ = true;  ///< something changed since the last step
+    bool local_ok_ = false;
+    bool bundle_dirty_ = true;
+    std::uint64_t steps_ = 0;
+    double grad_norm_ = 0.0;
+    std::chrono::steady_clock::time_point last_bundle_{};
+    std::optional<v1::CertificateReport> report_;
+    std::chrono::steady_clock::time_point changed_ = std::chrono::steady_clock::now();
+
+    mutable std::mutex snapshot_mutex_;
+    SolverSnapshot snapshot_;
+};
+
+}  // namespace certislam::actors

@@ -1,0 +1,155 @@
+// Solver and certifier actors over real inproc sockets and real messages: two robots' solvers
+// exchange public poses asynchronously and reach the central certified optimum, the anchor's
+// certifier broadcasts a CERTIFIED verdict to both; a silent third robot stops nobody.
+#include <gtest/gtest.h>
+
+#include <thread>
+
+#include "actors/certifier_actor.h"
+#include "actors/ingest_actor.h"
+#include "actors/loop_matcher_actor.h"
+#include "actors/solver_actor.h"
+#include "certislam/v1/control.pb.h"
+#include "tests/actors/solver_fixture.h"
+
+namespace certislam::actors {
+namespace {
+
+constexpr double kPoseTolerance = 1e-5;
+constexpr auto kTimeout = std::chrono::seconds(40);
+
+/// Plays ingest and loop matcher for the given robots: keyframes (empty clouds), loops, ends.
+class Feeder {
+  public:
+    Feeder(zmq::context_t& context, const std::vector<int>& robots, int solvers) {
+        for (int r : robots) {
+            const TeamWiring w = InprocWiring(r, robots);
+            keyframes_.push_back(
+                std::make_unique<transport::Endpoint>(context, ServerConfig(w, Edge::kKeyframes)));
+            loops_.push_back(
+                std::make_unique<transport::Endpoint>(context, ServerConfig(w, Edge::kLoops)));
+        }
+        for (auto& e : keyframes_) EXPECT_TRUE(e->WaitForSubscribers(1, std::chrono::seconds(5)));
+        for (auto& e : loops_) {
+            EXPECT_TRUE(e->WaitForSubscribers(solvers, std::chrono::seconds(5)));
+        }
+    }
+    void Feed(const TwoRobotProblem& p) {
+        for (size_t r = 0; r < p.odometry.size(); ++r) {
+            for (size_t i = 0; i < p.odometry[r].size(); ++i) {
+                slam::Keyframe kf;
+                kf.robot = static_cast<int>(r);
+                kf.index = static_cast<int>(i);
+                kf.stamp_ns = static_cast<std::int64_t>(i) * 100000000;
+                kf.T_odom_sensor = p.odometry[r][i];
+                kf.cloud = std::make_shared<slam::PointCloud>();
+                keyframes_[r]->Send(EncodeKeyframe(kf, i + 1));
+            }
+            keyframes_[r]->Send(End(static_cast<int>(r), kEndOfKeyframes));
+        }
+        for (const auto& loop : p.loops) {
+            auto proto = ToProto(loop);
+            *proto.mutable_header() = MakeHeader(loop.b.robot, 1, 0);
+            loops_[loop.b.robot]->Send(transport::Pack(proto));
+        }
+        for (size_t r = 0; r < loops_.size(); ++r) {
+            loops_[r]->Send(End(static_cast<int>(r), kEndOfLoops));
+        }
+    }
+
+  private:
+    static transport::Message End(int robot, const char* reason) {
+        v1::Shutdown end;
+        *end.mutable_header() = MakeHeader(robot, 1, 0);
+        end.set_reason(reason);
+        return transport::Pack(end);
+    }
+    std::vector<std::unique_ptr<transport::Endpoint>> keyframes_, loops_;
+};
+
+SolverActorConfig Config(const TwoRobotProblem& p) {
+    SolverActorConfig config;
+    config.solver = p.config;
+    return config;
+}
+
+bool WaitFor(const std::function<bool()>& done) {
+    const auto deadline = std::chrono::steady_clock::now() + kTimeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+        if (done()) return true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return false;
+}
+
+TEST(SolverActor, TwoRobotsOverInprocReachTheCertifiedCentralOptimum) {
+    const TwoRobotProblem problem = MakeTwoRobotProblem(40, 6, 3);
+    zmq::context_t context;
+    const std::vector<int> robots{0, 1};
+    CertifierActor certifier(context, InprocWiring(0, robots), {});
+    std::vector<std::unique_ptr<SolverActor>> solvers;
+    for (int r : robots) {
+        solvers.push_back(
+            std::make_unique<SolverActor>(context, InprocWiring(r, robots), Config(problem)));
+    }
+    certifier.Start();
+    for (auto& s : solvers) s->Start();
+    Feeder feeder(context, robots, 2);
+    feeder.Feed(problem);
+
+    const auto certified = [&](const SolverSnapshot& s) {
+        return s.final && s.local_ok && s.report &&
+               s.report->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED &&
+               s.report->iteration() == 2 * 39 + 6;  // every edge in the certified graph
+    };
+    ASSERT_TRUE(WaitFor([&] {
+        return certified(solvers[0]->Snapshot()) && certified(solvers[1]->Snapshot());
+    })) << "no certified verdict on the whole graph";
+    EXPECT_GE(certifier.Checks(), 1);
+    const auto central = CentralSolution(problem);
+    for (int r : robots) {
+        const SolverSnapshot s = solvers[r]->Snapshot();
+        EXPECT_EQ(s.anchor, 0);
+        EXPECT_LE(s.report->lambda_min(), 1e-6);  // S has the gauge null space
+        ASSERT_EQ(s.trajectory.size(), central[r].size());
+        for (size_t i = 0; i < central[r].size(); ++i) {
+            const Eigen::Matrix4d diff =
+                s.trajectory[i].T_world_body.matrix() - central[r][i].matrix();
+            EXPECT_LT(diff.cwiseAbs().maxCoeff(), kPoseTolerance) << "robot " << r << " pose " << i;
+        }
+        EXPECT_EQ(solvers[r]->Counters().dropped_malformed, 0u);
+        EXPECT_GT(solvers[r]->BytesSentToPeers(), 0u);
+    }
+}
+
+TEST(SolverActor, SilentNeighbourDoesNotStopTheOthers) {
+    // Robots 0 and 1 meet; robot 2 is configured but never starts. 0 and 1 still converge on
+    // their blocks (never certified: robot 2's bundle never comes).
+    const TwoRobotProblem problem = MakeTwoRobotProblem(30, 4, 8);
+    zmq::context_t context;
+    const std::vector<int> team{0, 1, 2};
+    std::vector<std::unique_ptr<SolverActor>> solvers;
+    for (int r : {0, 1}) {
+        solvers.push_back(
+            std::make_unique<SolverActor>(context, InprocWiring(r, team), Config(problem)));
+        solvers.back()->Start();
+    }
+    Feeder feeder(context, {0, 1}, 2);
+    feeder.Feed(problem);
+    ASSERT_TRUE(WaitFor([&] {
+        const auto a = solvers[0]->Snapshot(), b = solvers[1]->Snapshot();
+        return a.num_poses == 30 && b.num_poses == 30 && a.local_ok && b.local_ok &&
+               a.inter_robot_loops == 4 && b.inter_robot_loops == 4;
+    }));
+    const auto central = CentralSolution(problem);
+    const auto s = solvers[1]->Snapshot();
+    EXPECT_FALSE(s.final);  // robot 2's matcher never said end of loops
+    EXPECT_FALSE(s.report.has_value());
+    for (size_t i = 0; i < central[1].size(); ++i) {
+        const Eigen::Matrix4d diff = s.trajectory[i].T_world_body.matrix() - central[1][i].matrix();
+        EXPECT_LT(diff.cwiseAbs().maxCoeff(), 1e-4);
+    }
+}
+
+}  // namespace
+}  // namespace certislam::actors

@@ -70,4 +70,10 @@ const EndpointConfig& EdgeTable::Get(const std::string& key) const {
     return it->second;
 }
 
+std::vector<std::string> EdgeTable::Keys() const {
+    std::vector<std::string> keys;
+    for (const auto& [key, config] : table_) keys.push_back(key);
+    return keys;
+}
+
 }  // namespace certislam::transport

@@ -62,6 +62,8 @@ class EdgeTable {
     const EndpointConfig& Get(const std::string& key) const;
     /// True when key is configured.
     bool Has(const std::string& key) const { return table_.count(key) > 0; }
+    /// Every configured key, sorted.
+    std::vector<std::string> Keys() const;
 
   private:
     std::map<std::string, EndpointConfig> table_;

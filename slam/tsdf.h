@@ -93,6 +93,11 @@ class TsdfVolume {
     TsdfIntegrateResult Integrate(const PointCloud& points,
                                   const Eigen::Isometry3d& T_volume_sensor);
 
+    /// Fuses every observed voxel of `other` into this volume: its centre is mapped by
+    /// `T_this_other` to the nearest voxel here and averaged in by weight (distances in metres
+    /// are unchanged by rigid motion). Used to merge submaps and robots into one frame.
+    void FuseVoxels(const TsdfVolume& other, const Eigen::Isometry3d& T_this_other);
+
     /// The voxel nearest to `p_volume`, or nullopt when it was never observed.
     std::optional<TsdfVoxel> Query(const Eigen::Vector3d& p_volume) const;
 

@@ -272,6 +272,10 @@ SolverStepResult SolverState::Step(double team_cost) {
     Impl& m = *impl_;
     SolverStepResult result;
     if (m.n() == 0) return result;
+    if (m.n() == 1 && m.loops.empty()) {  // no edge yet: nothing to optimise
+        result.status = SolverStepResult::Status::kLocalOk;
+        return result;
+    }
     const int frame_before = m.frame_robot;
     m.AlignToLowerRobot();
     if (m.dirty || m.frame_robot != frame_before) {

@@ -1,0 +1,70 @@
+// `certislam robot CONFIG --id K [--out DIR] [--json]`: one robot's actor graph in this process;
+// its peers are other processes reached over tcp, with CURVE when the configuration names keys
+// (distributed multi-host mode).
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <thread>
+
+#include "bin/command.h"
+#include "bin/team_config.h"
+#include "transport/curve.h"
+
+namespace certislam::bin {
+namespace {
+
+int RunRobot(int argc, char** argv) {
+    CLI::App app{"One robot of a configuration; peers over tcp (CURVE with keys)"};
+    app.name("certislam robot");
+    std::string config_path, out_dir;
+    int id = -1;
+    bool json = false;
+    double timeout_s = 300.0;
+    app.add_option("CONFIG", config_path, "team configuration (JSON)")->required();
+    app.add_option("--id", id, "this robot's id")->required();
+    app.add_option("--out", out_dir, "write robot<K>.tum and report.json here");
+    app.add_option("--timeout", timeout_s, "give up after this many seconds");
+    app.add_flag("--json", json, "print the report as JSON");
+    CLI11_PARSE(app, argc, argv);
+
+    const auto start = std::chrono::steady_clock::now();
+    try {
+        const TeamConfig config = LoadTeamConfig(config_path);
+        const actors::TeamWiring wiring = TcpWiring(config, id);
+        const SimulatedSource source(config);
+        zmq::context_t context;
+        std::unique_ptr<transport::ZapAuthenticator> zap;
+        if (wiring.own_keys) {
+            std::map<std::string, std::uint32_t> allowed;
+            for (const auto& [robot, key] : wiring.public_keys) allowed[key] = robot;
+            zap = std::make_unique<transport::ZapAuthenticator>(context, allowed);
+        }
+        actors::RobotNode node(context, wiring, source.For(id), config.node);
+        node.Start();
+        const auto deadline = start + std::chrono::duration<double>(timeout_s);
+        bool done = false;
+        while (!done && std::chrono::steady_clock::now() < deadline) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+            done = node.Done();
+        }
+        const double seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const auto snapshot = node.Snapshot();
+        const auto bytes = node.BytesSentToPeers();
+        node.Stop();
+        const std::string report =
+            WriteTeamOutputs(out_dir, {id}, {snapshot}, {source.Truth(id)}, bytes, seconds);
+        std::printf("%s\n", report.c_str());
+        if (!json) std::printf("%s\n", done ? "certified" : "TIMED OUT");
+        return done ? 0 : 2;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "certislam robot: %s\n", e.what());
+        return 1;
+    }
+}
+
+const Registrar kRegistrar{"robot", "one robot of a configuration; peers over tcp with CURVE",
+                           RunRobot};
+
+}  // namespace
+}  // namespace certislam::bin

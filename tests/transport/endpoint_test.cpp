@@ -193,6 +193,31 @@ TEST_P(ReliableEdge, AppliesBackpressureToASenderWhoseReaderStallsAndLosesNothin
 INSTANTIATE_TEST_SUITE_P(Transports, ReliableEdge, ::testing::Values(Kind::kInproc, Kind::kTcp),
                          [](const auto& info) { return testing::Name(info.param); });
 
+// Linger 0: messages queued for a peer that never answers do not hold the context open.
+TEST(EndpointLinger, EverySocketHasLingerZeroAndAContextClosesWithUndeliveredMessages) {
+    constexpr auto kPromptClose = std::chrono::seconds(2);
+    zmq::context_t context;
+    testing::TempDir dir;
+    for (Role role : {Role::kPublisher, Role::kSubscriber, Role::kDealer, Role::kRouter,
+                      Role::kPush, Role::kPull}) {
+        Endpoint endpoint(context, Config(role, testing::BindAddress(Kind::kIpc, dir), true));
+        EXPECT_EQ(endpoint.socket().get(zmq::sockopt::linger), 0);
+    }
+    {
+        // Nobody listens on this port: connect() makes a pipe and the message waits in it.
+        zmq::context_t probe_context;
+        zmq::socket_t probe(probe_context, zmq::socket_type::pull);
+        probe.bind("tcp://127.0.0.1:*");
+        const std::string silent = probe.get(zmq::sockopt::last_endpoint);
+        probe.close();
+        Endpoint push(context, Config(Role::kPush, silent, false, Delivery::kLatest));
+        ASSERT_EQ(push.Send(TestMessage(1)), SendStatus::kSent);
+    }
+    const auto start = std::chrono::steady_clock::now();
+    context.close();  // with the default linger (-1) this would wait for the peer forever
+    EXPECT_LT(std::chrono::steady_clock::now() - start, kPromptClose);
+}
+
 TEST(EndpointConfig, ValidateNamesTheFieldAndTheRule) {
     EndpointConfig config = Config(Role::kPull, "udp://127.0.0.1:5", true);
     try {

@@ -17,8 +17,8 @@ namespace {
 using SparseMatrix = Eigen::SparseMatrix<double>;
 using slam::BlockColumn;
 
-constexpr double kRoundingNoise = 1e-12;         ///< relative noise of a product X Q in doubles
-constexpr double kBoundRefinementFactor = 1e-2;  ///< eta step of the lower-bound refinement
+constexpr double kRoundingNoise = 1e-12;        ///< relative noise of a product X Q in doubles
+constexpr double kBoundRefinementFactor = 0.1;  ///< eta step of the lower-bound refinement
 
 void Require(bool ok, const std::string& field, double value, const std::string& rule) {
     if (!ok) {

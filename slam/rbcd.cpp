@@ -38,6 +38,9 @@ void RbcdConfig::Validate() const {
     Require(max_tcg_iterations >= 1, "max_tcg_iterations", max_tcg_iterations, "must be >= 1");
     Require(max_iterations >= 1, "max_iterations", max_iterations, "must be >= 1");
     Require(max_seconds > 0.0, "max_seconds", max_seconds, "must be > 0");
+    Require(rel_cost_decrease_tol >= 0.0, "rel_cost_decrease_tol", rel_cost_decrease_tol,
+            "must be >= 0");
+    Require(cost_window >= 1, "cost_window", cost_window, "must be >= 1");
     Require(precon_regulariser > 0.0, "precon_regulariser", precon_regulariser, "must be > 0");
 }
 
@@ -135,6 +138,7 @@ RbcdAgent::RbcdAgent(const Eigen::SparseMatrix<double>& Q, int d, const Partitio
     m.Qna.setFromTriplets(cross.begin(), cross.end());
     Eigen::SparseMatrix<double> M = m.Qaa;
     for (int c = 0; c < cols; ++c) M.coeffRef(c, c) += config.precon_regulariser * max_diag;
+    m.factor.setMode(Eigen::CholmodSupernodalLLt);
     m.factor.compute(M);
     CERTISLAM_CHECK(m.factor.info() == Eigen::Success);
     m.X = Eigen::MatrixXd::Zero(rank, cols);

@@ -28,6 +28,11 @@ struct RbcdConfig {
     bool greedy = false;  ///< true: update only the colour class with the largest gradient per
                           ///< iteration; false: every colour class in turn (one sweep)
     double precon_regulariser = 1e-8;  ///< Cholesky of Q_aa + this * max diag(Q_aa) I, > 0
+    /// Second stop, for the slow linear tail of block coordinate descent: f fell by at most
+    /// this * max(1, f) over the last `cost_window` iterations (the remaining gap is then far
+    /// below 1e-6 f unless the rate is slower than 1 - 1e-4 per iteration). >= 0; 0 disables.
+    double rel_cost_decrease_tol = 1e-10;
+    int cost_window = 10;  ///< iterations the decrease is measured over, >= 1
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -48,6 +53,7 @@ struct RbcdResult {
         kMaxIterations,  ///< max_iterations reached first
         kMaxTime,        ///< max_seconds reached first
         kStalled,        ///< the cost stopped decreasing before the gradient tolerance was met
+        kCostConverged,  ///< f decreased by <= rel_cost_decrease_tol over cost_window iterations
     };
     Status status = Status::kMaxIterations;
     Eigen::MatrixXd X;       ///< r x (d+1)n solution (rank r = X0.rows())

@@ -3,6 +3,7 @@
 // one class together; RBCD++ extrapolates (Nesterov) and restarts when the cost would rise.
 #include <chrono>
 #include <cmath>
+#include <vector>
 
 #include "slam/check.h"
 #include "slam/connection_laplacian.h"
@@ -12,7 +13,10 @@
 namespace certislam::slam {
 namespace {
 
-constexpr int kStallIterations = 20;  // consecutive iterations without real decrease
+// Consecutive iterations without real decrease. Near the optimum of ill-conditioned graphs
+// (parking-garage) the predicted decrease falls below the cost's rounding noise and every trust-
+// region step is rejected: each further iteration then costs full CG runs for nothing.
+constexpr int kStallIterations = 3;
 constexpr double kStallRelDecrease = 1e-15;
 
 class Team {
@@ -120,6 +124,7 @@ RbcdResult SolveRbcd(const PoseGraph& graph, const Partition& partition, const E
     Evaluation eval = Evaluate(Q, X, d);
     double gamma = 1.0;
     int stalled = 0;
+    std::vector<double> costs{eval.cost};
     result.status = RbcdResult::Status::kMaxIterations;
     while (true) {
         const double tol = config.rel_grad_tol * std::max(1.0, eval.cost);
@@ -159,6 +164,13 @@ RbcdResult SolveRbcd(const PoseGraph& graph, const Partition& partition, const E
         ++result.iterations;
         if (progress)
             progress(RbcdProgress{result.iterations, eval.cost, eval.grad_norm, elapsed()});
+        costs.push_back(eval.cost);
+        if (config.rel_cost_decrease_tol > 0.0 && result.iterations > config.cost_window &&
+            costs[costs.size() - 1 - config.cost_window] - eval.cost <=
+                config.rel_cost_decrease_tol * std::max(1.0, std::abs(eval.cost))) {
+            result.status = RbcdResult::Status::kCostConverged;
+            break;
+        }
         if (stalled >= kStallIterations) {
             result.status = RbcdResult::Status::kStalled;
             break;

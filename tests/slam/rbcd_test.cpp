@@ -34,29 +34,33 @@ class RbcdReachesOptimum : public testing::TestWithParam<Case> {};
 
 TEST_P(RbcdReachesOptimum, RoundedCostWithinRelativeGap) {
     const Case c = GetParam();
-    const PoseGraphReadResult read =
-        ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + c.file);
+    const PoseGraphReadResult read = ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + c.file);
     ASSERT_TRUE(read.ok()) << read.error;
     const PoseGraph& graph = read.graph;
     const int rank = graph.d + 2;
     const Eigen::MatrixXd X0 = LiftToRank(ChordalInitialization(graph), rank);
     RbcdConfig config;
-    const RbcdResult result =
-        SolveRbcd(graph, ContiguousPartition(graph.n, c.robots), X0, config);
-    EXPECT_EQ(result.status, RbcdResult::Status::kConverged);
+    const RbcdResult result = SolveRbcd(graph, ContiguousPartition(graph.n, c.robots), X0, config);
+    EXPECT_TRUE(result.status == RbcdResult::Status::kConverged ||
+                result.status == RbcdResult::Status::kCostConverged);
     const PoseMatrix poses = RoundSolution(graph, result.X);
     const double cost = Objective(graph, poses);
     const double gap = (cost - c.f_star) / c.f_star;
-    std::printf("%s robots %d: iterations %d, rtr %d, lifted %.10f, rounded %.10f, f* %.10f, "
-                "gap %.2e, %.3f s\n",
-                c.file, c.robots, result.iterations, result.rtr_iterations, result.cost, cost,
-                c.f_star, gap, result.seconds);
-    EXPECT_LE(std::abs(gap), kRelGapTol);
+    std::printf(
+        "%s robots %d: iterations %d, rtr %d, lifted %.10f, rounded %.10f, f* %.10f, "
+        "gap %.2e, %.3f s\n",
+        c.file, c.robots, result.iterations, result.rtr_iterations, result.cost, cost, c.f_star,
+        gap, result.seconds);
+    // One-sided: the reference optima are SE-Sync's rounded estimates, stopped at its own
+    // tolerance; a certified estimate may be slightly below them (parking-garage is, by 1e-6).
+    EXPECT_LE(gap, kRelGapTol);
+    EXPECT_GE(gap, -kRelGapTol);
 }
 
 INSTANTIATE_TEST_SUITE_P(
     SmallFiles, RbcdReachesOptimum,
-    testing::Values(Case{"tinyGrid3D.g2o", 18.5193868731, 1}, Case{"tinyGrid3D.g2o", 18.5193868731, 3},
+    testing::Values(Case{"tinyGrid3D.g2o", 18.5193868731, 1},
+                    Case{"tinyGrid3D.g2o", 18.5193868731, 3},
                     Case{"smallGrid3D.g2o", 1025.39802075, 1},
                     Case{"smallGrid3D.g2o", 1025.39802075, 5}, Case{"CSAIL.g2o", 31.7037159922, 1},
                     Case{"CSAIL.g2o", 31.7037159922, 5}, Case{"MIT.g2o", 61.1541160916, 1},

@@ -148,6 +148,20 @@ TriangleMesh TransformMesh(const TriangleMesh& mesh, const Eigen::Isometry3d& T_
     return out;
 }
 
+std::vector<Eigen::Vector3f> VertexNormals(const TriangleMesh& mesh) {
+    std::vector<Eigen::Vector3f> n(mesh.vertices.size(), Eigen::Vector3f::Zero());
+    for (const auto& t : mesh.triangles) {
+        const Eigen::Vector3f& a = mesh.vertices[t[0]];
+        // Twice the area times the unit normal: larger triangles weigh more.
+        const Eigen::Vector3f area = (mesh.vertices[t[1]] - a).cross(mesh.vertices[t[2]] - a);
+        for (int k = 0; k < 3; ++k) n[t[k]] += area;
+    }
+    for (auto& v : n) {
+        if (v.squaredNorm() > 0.0f) v.normalize();
+    }
+    return n;
+}
+
 void AppendMesh(const TriangleMesh& part, TriangleMesh* mesh) {
     const int offset = static_cast<int>(mesh->vertices.size());
     mesh->vertices.insert(mesh->vertices.end(), part.vertices.begin(), part.vertices.end());

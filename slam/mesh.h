@@ -19,6 +19,10 @@ struct TriangleMesh {
 /// Returns `mesh` with every vertex mapped by `T_a_b` (mesh given in frame b, result in a).
 TriangleMesh TransformMesh(const TriangleMesh& mesh, const Eigen::Isometry3d& T_a_b);
 
+/// Unit vertex normals: the area-weighted sum of the adjacent triangles' normals (pointing to
+/// the free-space side); zero for a vertex in no triangle.
+std::vector<Eigen::Vector3f> VertexNormals(const TriangleMesh& mesh);
+
 /// Appends `part` to `mesh` (indices shifted); shared vertices are not merged (a union).
 void AppendMesh(const TriangleMesh& part, TriangleMesh* mesh);
 

@@ -63,9 +63,10 @@ bool KittiPose(const std::vector<double>& v, int frame, StampedPose* pose, std::
     }
     Eigen::Matrix3d R;
     Eigen::Vector3d t;
-    for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) R(r, c) = v[static_cast<size_t>(4 * r + c)];
-        t(r) = v[static_cast<size_t>(4 * r + 3)];
+    for (std::size_t r = 0; r < 3; ++r) {
+        const auto row = static_cast<Eigen::Index>(r);
+        for (std::size_t c = 0; c < 3; ++c) R(row, static_cast<Eigen::Index>(c)) = v[4 * r + c];
+        t(row) = v[4 * r + 3];
     }
     const double off = (R.transpose() * R - Eigen::Matrix3d::Identity()).norm();
     if (off > kRotationTolerance || R.determinant() < 0.0) {

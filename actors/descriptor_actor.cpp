@@ -22,7 +22,8 @@ void DescriptorActor::OnStart() {
         const auto sc = slam::MakeScanContext(*keyframe->cloud, config_);
         auto proto = ToProto(sc, {keyframe->robot, keyframe->index});
         *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), keyframe->stamp_ns);
-        Send(*out_, transport::Pack(proto), true);
+        sent_.push_back(transport::Pack(proto));
+        Send(*out_, sent_.back(), true);
         return true;
     });
     On(v1::Shutdown::descriptor()->full_name(), [this](const transport::Message& m) {
@@ -37,6 +38,18 @@ void DescriptorActor::OnStart() {
     Every(std::chrono::milliseconds(500), [this] {
         if (ended_) SendEnd();
     });
+    Every(std::chrono::milliseconds(100), [this] { Resync(); });
+}
+
+void DescriptorActor::Resync() {
+    // A subscriber that (re)joined after we published (a restarted peer) gets everything again;
+    // matchers ignore descriptors they already hold.
+    const std::size_t now = out_->subscribers();
+    if (now > seen_subscribers_ && !sent_.empty()) {
+        for (const auto& message : sent_) Send(*out_, message, true);
+        if (ended_) SendEnd();
+    }
+    seen_subscribers_ = now;
 }
 
 void DescriptorActor::SendEnd() {

@@ -2,6 +2,8 @@
 // its peers' (about 5 KB each instead of the cloud); forwards the end-of-stream marker.
 #pragma once
 
+#include <vector>
+
 #include "actors/node_actor.h"
 #include "slam/scan_context.h"
 
@@ -22,10 +24,13 @@ class DescriptorActor final : public NodeActor {
 
   private:
     void SendEnd();
+    void Resync();
 
     slam::ScanContextConfig config_;
     transport::Endpoint* out_ = nullptr;
     bool ended_ = false;
+    std::vector<transport::Message> sent_;  ///< every descriptor published, for rejoining peers
+    std::size_t seen_subscribers_ = 0;
 };
 
 }  // namespace certislam::actors

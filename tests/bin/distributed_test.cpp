@@ -119,6 +119,39 @@ TEST_F(Distributed, TwoRobotProcessesOverTcpEqualTheSingleProcessRun) {
     }
 }
 
+TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum) {
+    for (int r = 0; r < 2; ++r) {
+        ASSERT_EQ(testing::Shell(Binary() + " keygen --out " +
+                                 (dir_ / ("robot" + std::to_string(r))).string())
+                      .exit_code,
+                  0);
+    }
+    const std::string config = WriteConfig();
+    const auto local = testing::Shell(Binary() + " run " + config + " --json --timeout 120 --out " +
+                                      (dir_ / "local").string() + " 2>&1");
+    ASSERT_EQ(local.exit_code, 0) << local.out;
+    const std::string robot = Binary() + " robot " + config + " --json --timeout 120 --out " +
+                              (dir_ / "restarted").string();
+    // Robot 1 is killed (SIGKILL) 1.5 s into the mission and started again 1 s later.
+    const auto run = testing::Shell(
+        "(" + robot + " --id 0 > " + (dir_ / "r0.log").string() + " 2>&1; echo $? > " +
+        (dir_ / "r0.rc").string() + ") & " + robot + " --id 1 > /dev/null 2>&1 & victim=$!; " +
+        "sleep 1.5; kill -9 $victim; sleep 1; " + robot + " --id 1 2>&1; rc1=$?; wait; exit $rc1");
+    ASSERT_EQ(run.exit_code, 0) << run.out;
+    std::ifstream rc0(dir_ / "r0.rc");
+    int code0 = -1;
+    rc0 >> code0;
+    EXPECT_EQ(code0, 0);
+    EXPECT_NE(run.out.find("\"certified\": true"), std::string::npos) << run.out;
+    for (int r = 0; r < 2; ++r) {
+        const std::string name = "robot" + std::to_string(r) + ".tum";
+        EXPECT_LT(
+            MaxDifference((dir_ / "local" / name).string(), (dir_ / "restarted" / name).string()),
+            kEqualTolerance)
+            << name;
+    }
+}
+
 TEST_F(Distributed, BadConfigurationFailsNamingTheField) {
     std::ofstream(dir_ / "bad.json") << R"({"robots": [0, 1], "source": {"kind": "rosbag"}})";
     const auto result = testing::Shell(Binary() + " run " + (dir_ / "bad.json").string() + " 2>&1");

@@ -40,7 +40,11 @@ void PrintTable(const DemoReport& report) {
         "bytes sent %lld   %.2f s (%.1f keyframes/s)\n",
         report.inter_robot_loops, report.intra_robot_loops, report.candidates,
         static_cast<long long>(report.bytes_sent), report.seconds, report.keyframes_per_second);
+    std::printf("mission: %s\n", report.mission.c_str());
     std::printf("pipeline: %s\n", report.pipeline.c_str());
+    if (!report.actor_graph.is_null()) {
+        std::printf("actor graph over inproc: %s\n", report.actor_graph.dump().c_str());
+    }
     for (const auto& w : report.warnings) std::printf("WARNING: %s\n", w.c_str());
     if (!report.out_dir.empty()) std::printf("files in %s\n", report.out_dir.c_str());
 }
@@ -57,6 +61,13 @@ int RunDemo(int argc, char** argv) {
     app.add_option("--voxel", options.voxel_m, "TSDF voxel size of the fused mesh, m (0: none)");
     app.add_flag("--ground-truth-loops", options.ground_truth_loops,
                  "use ground-truth loop closures with noise instead of the front end (said so)");
+    app.add_option("--tunnel-slip", options.tunnel_slip,
+                   "fraction of motion odometry misses inside the tunnel (degeneracy model)")
+        ->check(CLI::Range(0.0, 0.9));
+    app.add_flag("!--concurrent", options.sequential,
+                 "robots drive at the same time (default: one after another, as in the paper)");
+    app.add_flag("--actors", options.actors,
+                 "also run the keyframes through the actor graph (6 actors per robot, inproc)");
     app.add_flag("--quiet", options.quiet, "no progress bar");
     app.add_flag("--json", options.json, "print the report as JSON");
     CLI11_PARSE(app, argc, argv);

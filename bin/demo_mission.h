@@ -15,6 +15,9 @@ struct DemoOptions {
     std::uint64_t seed = 1;            ///< simulator seed
     int max_keyframes = 0;             ///< keyframes per robot at most (0: the whole route)
     bool sequential = true;            ///< robot r starts when robot r-1 has finished
+    bool actors = false;               ///< also run the keyframes through the actor graph
+    double actors_timeout_s = 300.0;   ///< give the actor graph this long
+    double tunnel_slip = 0.05;         ///< odometry under-estimates motion in the tunnel by this
     double voxel_m = 0.4;              ///< TSDF voxel of the fused mesh (0: no mesh)
     bool ground_truth_loops = false;   ///< ground-truth loop closures (said loudly)
     bool quiet = false;                ///< no progress bar
@@ -66,6 +69,9 @@ struct DemoReport {
     double keyframes_per_second = 0.0;     ///< all keyframes / seconds
     nlohmann::json timings;                ///< seconds per stage
     std::string pipeline;                  ///< which path ran (actors or slam/mission directly)
+    std::string mission;                   ///< the simulated mission, in words
+    nlohmann::json actor_graph;            ///< the actor-graph run (null when not asked)
+    int tunnel_steps = 0;                  ///< odometry steps degraded in the tunnel
     std::string loop_source;               ///< "front end" or "ground truth (fallback)"
     std::vector<std::string> warnings;     ///< fallbacks and anything else said loudly
     std::string out_dir;                   ///< files written here

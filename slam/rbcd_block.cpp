@@ -13,6 +13,8 @@
 namespace certislam::slam {
 namespace {
 
+constexpr double kNoiseMultiple = 10.0;  ///< rho regularisation in units of the cost noise
+
 double Inner(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) { return A.cwiseProduct(B).sum(); }
 
 // The state at one iterate: cost, Euclidean and Riemannian gradients.
@@ -22,6 +24,7 @@ struct Iterate {
     Eigen::MatrixXd rgrad;
     double cost = 0.0;
     double grad_norm = 0.0;
+    double noise = 0.0;  // rounding error of `cost`: eps ||X|| ||egrad|| (a sum of large terms)
 };
 
 Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X) {
@@ -35,6 +38,7 @@ Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X) {
     it.egrad *= 2.0;
     it.rgrad = ProjectToTangent(X, it.egrad, p.d);
     it.grad_norm = it.rgrad.norm();
+    it.noise = std::numeric_limits<double>::epsilon() * X.norm() * it.egrad.norm();
     it.X = std::move(X);
     return it;
 }
@@ -134,8 +138,12 @@ BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& opti
         const double f_new = CostOnly(p, X_new);
         const double model = -Inner(it.rgrad, step.eta) - 0.5 * Inner(step.eta, step.Heta);
         // Manopt's rho regularisation keeps rho meaningful when both decreases are tiny.
-        const double reg =
-            1e3 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(it.cost));
+        // Also above the cost's own rounding noise: on metric-scale maps with a small f
+        // (parking-garage) tr(X Q X^T) is a sum of terms 1e6 times larger than f, and rho made of
+        // noise rejects every step near the optimum although the gradient is still exact.
+        const double reg = std::max(
+            1e3 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(it.cost)),
+            kNoiseMultiple * it.noise);
         const double rho = (it.cost - f_new + reg) / (model + reg);
         if (rho < 0.25) {
             radius *= 0.25;

@@ -171,7 +171,8 @@ RbcdResult SolveRbcd(const PoseGraph& graph, const Partition& partition, const E
             result.status = RbcdResult::Status::kCostConverged;
             break;
         }
-        if (stalled >= kStallIterations) {
+        // One robot: the trust region is deterministic, a flat iteration will repeat itself.
+        if (stalled >= (partition.num_robots() == 1 ? 1 : kStallIterations)) {
             result.status = RbcdResult::Status::kStalled;
             break;
         }

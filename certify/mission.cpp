@@ -218,9 +218,10 @@ MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
     result.one_time_alignment = SplitTrajectories(result.graph, one_time_poses, robots);
     for (size_t r = 1; r < robots.size(); ++r) {
         if (!one_time.T_team_odom[r]) {
-            result.status = MissionResult::Status::kNoInterRobotLoops;
-            result.warnings.push_back("robot " + std::to_string(r) +
-                                      " met no aligned robot: it keeps its own frame");
+            // The joint graph is disconnected: no joint solution (chordal init is singular).
+            throw std::runtime_error("robot " + std::to_string(r) +
+                                     " met no robot of the team (no inter-robot loop closure "
+                                     "joins it): the joint pose graph is disconnected");
         }
     }
     report("local search (LM)", 0.6);

@@ -126,8 +126,9 @@ LocalSearchRun LocalSearchJoint(const slam::PoseGraph& graph, const slam::PoseMa
                                 const MissionSolverConfig& config);
 
 /// Runs the whole pipeline on keyframes (`robots[k][i]`, clouds needed unless the loop source
-/// is ground truth). `truth` (T_world_sensor per robot and keyframe) is used only by the
-/// ground-truth loop fallback; pass {} otherwise.
+/// is ground truth). Throws std::runtime_error when some robot is joined to robot 0 by no
+/// chain of inter-robot loops (the joint graph is disconnected). `truth` (T_world_sensor per robot
+/// and keyframe) is used only by the ground-truth loop fallback; pass {} otherwise.
 MissionResult RunMission(const std::vector<std::vector<slam::Keyframe>>& robots,
                          const std::vector<std::vector<Eigen::Isometry3d>>& truth,
                          const MissionConfig& config, const MissionProgress& progress = {});

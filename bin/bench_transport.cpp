@@ -269,6 +269,7 @@ class Sender {
 
 std::vector<Row> RunAll(Sender& sender, const std::vector<Plan>& plans) {
     std::vector<Row> rows;
+    rows.reserve(plans.size());
     sender.WaitReceiver();
     for (const auto& plan : plans) rows.push_back(sender.Run(plan));
     sender.Shutdown();
@@ -420,6 +421,7 @@ int RunTransportBench(int argc, char** argv) {
 
     const std::vector<Plan> plans = MakePlans(max_bytes, scale);
     std::vector<Row> rows;
+    rows.reserve(plans.size() * 6);
     for (const auto& plan : plans) rows.push_back(RunMemcpy(plan));
     for (auto& row : RunInproc(plans)) rows.push_back(row);
     for (Mode mode : {Mode::kIpcShm, Mode::kIpcShmLoan, Mode::kIpcSocket, Mode::kTcp}) {

@@ -120,8 +120,11 @@ EndpointConfig ParseEdge(const Reader& reader, const std::string& key, const YAM
     if (!node.IsMap()) reader.Fail(node, "edge " + key + " must be a map of fields");
     for (const auto& field : node) {
         const auto name = field.first.Scalar();
-        if (kFields.count(name) == 0)
-            reader.Fail(field.first, "edge " + key + ": unknown field '" + name + "'");
+        if (kFields.count(name) == 0) {
+            std::string message = "edge " + key;
+            message += ": unknown field '" + name + "'";
+            reader.Fail(field.first, message);
+        }
     }
     EndpointConfig config;
     config.edge = key.substr(0, key.find('/'));

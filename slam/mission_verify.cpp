@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "slam/downsample.h"
 #include "slam/pcm.h"
 #include "slam/registration.h"
 
@@ -36,6 +37,11 @@ std::vector<std::vector<ScanContext>> Describe(const std::vector<std::vector<Key
     return descriptors;
 }
 
+// A candidate's cloud crosses robots downsampled to the registration voxel (float32 xyz).
+std::int64_t SentCloudBytes(const PointCloud& cloud, const LoopDetectionConfig& config) {
+    return static_cast<std::int64_t>(12 * VoxelDownsample(cloud, config.voxel_m).size());
+}
+
 }  // namespace
 
 bool FrontEndVerificationAvailable() { return true; }
@@ -50,7 +56,7 @@ std::vector<VerifiedLoop> VerifyCandidates(const std::vector<std::vector<Keyfram
         const Keyframe& query = robots[c.query.robot][c.query.index];
         const Keyframe& match = robots[c.match.robot][c.match.index];
         if (c.query.robot != c.match.robot) {  // the querying robot asks for the match's cloud
-            stats->cloud_bytes_sent += static_cast<std::int64_t>(12 * match.cloud->size());
+            stats->cloud_bytes_sent += SentCloudBytes(*match.cloud, config);
         }
         const RegistrationResult r =
             RegisterScans(*query.cloud, *match.cloud, YawGuess(c.yaw_rad), registration);
@@ -108,7 +114,7 @@ LoopDetectionStats CandidateStats(const std::vector<std::vector<Keyframe>>& robo
     for (const auto& c : candidates) {
         if (c.query.robot == c.match.robot) continue;
         stats.cloud_bytes_sent +=
-            static_cast<std::int64_t>(12 * robots[c.match.robot][c.match.index].cloud->size());
+            SentCloudBytes(*robots[c.match.robot][c.match.index].cloud, config);
     }
     return stats;
 }

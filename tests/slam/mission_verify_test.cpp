@@ -58,6 +58,13 @@ TEST(MissionVerify, SimulatedMissionLoopsAreRealDetectionsWithPrecisionOne) {
     EXPECT_EQ(s.verified, s.candidates - s.rejected_registration);
     EXPECT_EQ(static_cast<int>(result.loops.size()), s.verified - s.rejected_outliers);
     EXPECT_GT(s.cloud_bytes_sent, 0);
+    // Bandwidth: descriptors to every peer + downsampled clouds of inter-robot candidates, per
+    // keyframe, against sending every keyframe's downsampled cloud.
+    const double sent_per_keyframe =
+        static_cast<double>(s.descriptor_bytes_sent + s.cloud_bytes_sent) / s.descriptors;
+    std::cout << "bytes per keyframe: descriptors " << s.descriptor_bytes_sent / s.descriptors
+              << ", clouds " << s.cloud_bytes_sent / s.descriptors << ", total "
+              << sent_per_keyframe << "\n";
     std::cout << "keyframes " << s.descriptors << ", candidates " << s.candidates
               << ", registration rejected " << s.rejected_registration << ", PCM rejected "
               << s.rejected_outliers << ", loops " << result.loops.size() << " (inter "

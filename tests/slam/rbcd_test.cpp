@@ -57,6 +57,8 @@ TEST_P(RbcdReachesOptimum, RoundedCostWithinRelativeGap) {
     EXPECT_GE(gap, -kRelGapTol);
 }
 
+// intel with 5 robots also reached f* here (gap -5.8e-9, 1654 iterations, 63 s on a loaded
+// 2-core machine): too long for the test suite.
 INSTANTIATE_TEST_SUITE_P(
     SmallFiles, RbcdReachesOptimum,
     testing::Values(Case{"tinyGrid3D.g2o", 18.5193868731, 1},
@@ -64,8 +66,7 @@ INSTANTIATE_TEST_SUITE_P(
                     Case{"smallGrid3D.g2o", 1025.39802075, 1},
                     Case{"smallGrid3D.g2o", 1025.39802075, 5}, Case{"CSAIL.g2o", 31.7037159922, 1},
                     Case{"CSAIL.g2o", 31.7037159922, 5}, Case{"MIT.g2o", 61.1541160916, 1},
-                    Case{"MIT.g2o", 61.1541160916, 5}, Case{"intel.g2o", 52.3482275928, 1},
-                    Case{"intel.g2o", 52.3482275928, 5}),
+                    Case{"MIT.g2o", 61.1541160916, 5}, Case{"intel.g2o", 52.3482275928, 1}),
     Name);
 
 }  // namespace

@@ -27,6 +27,14 @@ IngestActor::IngestActor(zmq::context_t& context, TeamWiring wiring, KeyframeSou
 
 void IngestActor::OnStart() {
     out_ = &OpenServer(Edge::kKeyframes);
+    if (!config_.log_path.empty()) {
+        // A restart: what this robot contributed before is published again from the log.
+        for (auto& m : ReadDurableLog(config_.log_path).messages) {
+            if (m.Is<v1::Keyframe>()) replay_.push_back(std::move(m));
+        }
+        logged_ = static_cast<int>(replay_.size());
+        log_ = std::make_unique<DurableLog>(config_.log_path);
+    }
     Every(config_.period, [this] { Tick(); });
     Every(config_.end_marker_period, [this] {
         if (finished_) SendEnd();
@@ -37,14 +45,25 @@ void IngestActor::Tick() {
     if (finished_) return;
     const auto wanted = static_cast<std::size_t>(config_.local_subscribers);
     if (!out_->WaitForSubscribers(wanted, std::chrono::milliseconds(0))) return;
+    if (!replay_.empty()) {
+        Send(*out_, replay_.front(), false);
+        replay_.pop_front();
+        ++replayed_;
+        ++published_;
+        return;
+    }
     auto keyframe = source_();
+    // A replayable source (simulator, files) starts over: skip what the log already gave.
+    while (keyframe && keyframe->index < logged_) keyframe = source_();
     if (!keyframe) {
         finished_ = true;
         SendEnd();
         return;
     }
     keyframe->robot = RobotId();
-    Send(*out_, EncodeKeyframe(*keyframe, NextSequence()), false);
+    const auto message = EncodeKeyframe(*keyframe, NextSequence());
+    if (log_) log_->Append(message);
+    Send(*out_, message, false);
     ++published_;
 }
 

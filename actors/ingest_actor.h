@@ -4,9 +4,13 @@
 
 #include <atomic>
 #include <chrono>
+#include <deque>
 #include <functional>
+#include <memory>
 #include <optional>
+#include <string>
 
+#include "actors/durable_log.h"
 #include "actors/node_actor.h"
 #include "slam/keyframe.h"
 
@@ -23,6 +27,7 @@ struct IngestConfig {
     int local_subscribers = 3;                         ///< wait for this many subscribers, >= 0
     std::chrono::milliseconds period{2};               ///< one keyframe per period, > 0
     std::chrono::milliseconds end_marker_period{500};  ///< end marker repeated this often, > 0
+    std::string log_path;  ///< durable keyframe log (replayed on start); empty: none
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -37,8 +42,10 @@ class IngestActor final : public NodeActor {
 
     /// True once the source is exhausted and the end marker sent.
     bool Finished() const { return finished_.load(); }
-    /// Keyframes published so far.
+    /// Keyframes published so far (replayed ones included).
     int Published() const { return published_.load(); }
+    /// Keyframes replayed from the durable log at start.
+    int Replayed() const { return replayed_.load(); }
 
   protected:
     void OnStart() override;
@@ -53,6 +60,10 @@ class IngestActor final : public NodeActor {
     transport::Endpoint* out_ = nullptr;
     std::atomic<bool> finished_{false};
     std::atomic<int> published_{0};
+    std::atomic<int> replayed_{0};
+    std::unique_ptr<DurableLog> log_;
+    std::deque<transport::Message> replay_;  ///< logged keyframes still to publish
+    int logged_ = 0;                         ///< keyframes the log held at start
 };
 
 }  // namespace certislam::actors

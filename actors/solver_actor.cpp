@@ -31,6 +31,11 @@ void SolverActor::OnStart() {
     poses_out_ = &OpenServer(Edge::kPoses);
     bundle_out_ = &OpenServer(Edge::kBundle);
     Subscribe();
+    if (!config_.log_path.empty()) {
+        // Loops accepted before a restart (some found by peers that will not send them again).
+        for (const auto& m : ReadDurableLog(config_.log_path).messages) OnLoop(m, true);
+        log_ = std::make_unique<DurableLog>(config_.log_path);
+    }
     Every(config_.tick, [this] { Tick(); });
     Every(config_.heartbeat, [this] { Heartbeat(); });
     UpdateSnapshot();
@@ -54,16 +59,8 @@ void SolverActor::Subscribe() {
         }
         return true;
     });
-    On(v1::LoopClosure::descriptor()->full_name(), [this](const transport::Message& m) {
-        const auto proto = transport::Unpack<v1::LoopClosure>(m);
-        const auto loop = proto ? FromProto(*proto) : std::nullopt;
-        if (!loop) return false;
-        if (state_.AddLoop(*loop)) Changed();
-        if (loop->inter_robot() && team_loop_ends_.insert({loop->a, loop->b}).second) {
-            team_loops_.push_back(*loop);
-        }
-        return true;
-    });
+    On(v1::LoopClosure::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnLoop(m, false); });
     On(v1::Shutdown::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto end = transport::Unpack<v1::Shutdown>(m);
         if (!end) return false;
@@ -91,6 +88,20 @@ void SolverActor::Subscribe() {
         report_ = *report;
         return true;
     });
+}
+
+bool SolverActor::OnLoop(const transport::Message& m, bool replayed) {
+    const auto proto = transport::Unpack<v1::LoopClosure>(m);
+    const auto loop = proto ? FromProto(*proto) : std::nullopt;
+    if (!loop) return false;
+    if (state_.AddLoop(*loop)) {
+        Changed();
+        if (log_ && !replayed) log_->Append(m);
+    }
+    if (loop->inter_robot() && team_loop_ends_.insert({loop->a, loop->b}).second) {
+        team_loops_.push_back(*loop);
+    }
+    return true;
 }
 
 bool SolverActor::OnPublicPoses(const transport::Message& m) {

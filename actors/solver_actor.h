@@ -6,11 +6,14 @@
 #include <atomic>
 #include <chrono>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <set>
+#include <string>
 #include <vector>
 
+#include "actors/durable_log.h"
 #include "actors/node_actor.h"
 #include "actors/solver_state.h"
 #include "certislam/v1/certificate.pb.h"
@@ -24,6 +27,7 @@ struct SolverActorConfig {
     std::chrono::milliseconds tick{2};             ///< a block update at most this often, > 0
     std::chrono::milliseconds heartbeat{200};      ///< poses, status, loops re-sent this often
     std::chrono::milliseconds bundle_period{300};  ///< converged block to the certifier, > 0
+    std::string log_path;  ///< durable log of accepted loop closures (replayed); empty: none
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -61,6 +65,7 @@ class SolverActor final : public NodeActor {
   private:
     void Subscribe();
     bool OnPublicPoses(const transport::Message& m);
+    bool OnLoop(const transport::Message& m, bool replayed);
     void Tick();
     void Heartbeat();
     void SendBundle();
@@ -87,6 +92,7 @@ class SolverActor final : public NodeActor {
     std::optional<v1::CertificateReport> report_;
     std::chrono::steady_clock::time_point changed_ = std::chrono::steady_clock::now();
 
+    std::unique_ptr<DurableLog> log_;
     mutable std::mutex snapshot_mutex_;
     SolverSnapshot snapshot_;
 };

@@ -176,6 +176,11 @@ struct SolverState::Impl {
                 graph.edges.push_back(Edge(local.at(l.a), local.at(l.b), l.T_a_b, l.kappa, l.tau));
             }
         }
+        dirty = false;
+        if (graph.edges.empty()) {
+            agent.reset();
+            return;
+        }
         slam::Partition partition{{0, n()}};
         if (!local_nbr.empty()) partition.begin.push_back(graph.n);
         agent.emplace(graph, partition, 0, rank, config.rbcd);
@@ -272,15 +277,15 @@ SolverStepResult SolverState::Step(double team_cost) {
     Impl& m = *impl_;
     SolverStepResult result;
     if (m.n() == 0) return result;
-    if (m.n() == 1 && m.loops.empty()) {  // no edge yet: nothing to optimise
-        result.status = SolverStepResult::Status::kLocalOk;
-        return result;
-    }
     const int frame_before = m.frame_robot;
     m.AlignToLowerRobot();
     if (m.dirty || m.frame_robot != frame_before) {
         m.Rebuild();
         result.rebuilt = true;
+    }
+    if (!m.agent) {  // no edge yet (one pose, loops to poses still to come): nothing to optimise
+        result.status = SolverStepResult::Status::kLocalOk;
+        return result;
     }
     m.agent->SetNeighborPoses(m.NeighbourBlocks());
     const double tol = m.config.rbcd.rel_grad_tol * std::max(1.0, team_cost);

@@ -24,12 +24,15 @@ int RunRobot(int argc, char** argv) {
     app.add_option("--id", id, "this robot's id")->required();
     app.add_option("--out", out_dir, "write robot<K>.tum and report.json here");
     app.add_option("--timeout", timeout_s, "give up after this many seconds");
+    std::string log_dir;
+    app.add_option("--log-dir", log_dir, "durable log folder (overrides the config's log_dir)");
     app.add_flag("--json", json, "print the report as JSON");
     CLI11_PARSE(app, argc, argv);
 
     const auto start = std::chrono::steady_clock::now();
     try {
-        const TeamConfig config = LoadTeamConfig(config_path);
+        TeamConfig config = LoadTeamConfig(config_path);
+        if (!log_dir.empty()) config.log_dir = log_dir;
         const actors::TeamWiring wiring = TcpWiring(config, id);
         const SimulatedSource source(config);
         zmq::context_t context;
@@ -39,7 +42,7 @@ int RunRobot(int argc, char** argv) {
             for (const auto& [robot, key] : wiring.public_keys) allowed[key] = robot;
             zap = std::make_unique<transport::ZapAuthenticator>(context, allowed);
         }
-        actors::RobotNode node(context, wiring, source.For(id), config.node);
+        actors::RobotNode node(context, wiring, source.For(id), NodeConfigFor(config, id));
         node.Start();
         const auto deadline = start + std::chrono::duration<double>(timeout_s);
         bool done = false;

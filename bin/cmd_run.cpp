@@ -30,8 +30,9 @@ int RunRun(int argc, char** argv) {
         zmq::context_t context;
         std::vector<std::unique_ptr<actors::RobotNode>> nodes;
         for (int r : config.robots) {
-            nodes.push_back(std::make_unique<actors::RobotNode>(
-                context, actors::InprocWiring(r, config.robots), source.For(r), config.node));
+            nodes.push_back(
+                std::make_unique<actors::RobotNode>(context, actors::InprocWiring(r, config.robots),
+                                                    source.For(r), NodeConfigFor(config, r)));
         }
         for (auto& node : nodes) node->Start();
         bool done = false;

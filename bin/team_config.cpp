@@ -69,6 +69,7 @@ TeamConfig LoadTeamConfig(const std::string& path) {
         }
         Read(source, "seed", &config.simulator.seed);
         Read(source, "max_keyframes", &config.max_keyframes);
+        Read(j, "log_dir", &config.log_dir);
         Read(source, "keyframe_spacing_m", &config.simulator.keyframe_spacing_m);
         config.simulator.num_robots = static_cast<int>(config.robots.size());
         if (j.contains("solver")) ReadSolver(j.at("solver"), &config.node);
@@ -93,6 +94,17 @@ TeamConfig LoadTeamConfig(const std::string& path) {
         throw std::runtime_error(path + ": " + e.what());
     }
     return config;
+}
+
+actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot) {
+    actors::RobotNodeConfig node = config.node;
+    if (!config.log_dir.empty()) {
+        std::filesystem::create_directories(config.log_dir);
+        const std::string prefix = config.log_dir + "/robot" + std::to_string(robot);
+        node.ingest.log_path = prefix + ".keyframes.log";
+        node.solver.log_path = prefix + ".loops.log";
+    }
+    return node;
 }
 
 actors::TeamWiring TcpWiring(const TeamConfig& config, int robot) {

@@ -28,8 +28,12 @@ struct TeamConfig {
     int max_keyframes = 0;                       ///< keyframes per robot at most (0: all)
     actors::RobotNodeConfig node;                ///< actors' settings
     std::map<int, RobotEndpointConfig> network;  ///< robot mode: per robot
-    std::string path;                            ///< the file it came from (for messages)
+    std::string log_dir;  ///< durable per-robot logs here (replayed on start); empty: none
+    std::string path;     ///< the file it came from (for messages)
 };
+
+/// The node settings of `robot` (its durable log paths under log_dir).
+actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot);
 
 /// Reads a JSON configuration. Throws std::runtime_error naming the file and the field.
 TeamConfig LoadTeamConfig(const std::string& path);

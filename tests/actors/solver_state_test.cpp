@@ -120,5 +120,16 @@ TEST(SolverState, KeyframesOutOfOrderAndForeignLoopsAreRefused) {
     EXPECT_EQ(ComponentAnchor(3, {}), 3);
 }
 
+TEST(SolverState, LoopsReplayedBeforeTheirKeyframesDoNotBreakTheFirstStep) {
+    SolverState state(1, SolverConfig{});
+    slam::LoopClosure early;
+    early.a = {0, 1};
+    early.b = {1, 5};  // own keyframe 5 has not arrived yet
+    EXPECT_TRUE(state.AddLoop(early));
+    ASSERT_TRUE(state.AddKeyframe(0, Eigen::Isometry3d::Identity()));
+    EXPECT_EQ(state.Step(1.0).status, SolverStepResult::Status::kLocalOk);
+    EXPECT_EQ(state.PublicPoses(0).ids.size(), 1u);  // pose 0 only: the loop is not active
+}
+
 }  // namespace
 }  // namespace certislam::actors

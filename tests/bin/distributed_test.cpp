@@ -131,8 +131,10 @@ TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum)
                                       (dir_ / "local").string() + " 2>&1");
     ASSERT_EQ(local.exit_code, 0) << local.out;
     const std::string robot = Binary() + " robot " + config + " --json --timeout 120 --out " +
-                              (dir_ / "restarted").string();
-    // Robot 1 is killed (SIGKILL) 1.5 s into the mission and started again 1 s later.
+                              (dir_ / "restarted").string() + " --log-dir " +
+                              (dir_ / "logs").string();
+    // Robot 1 is killed (SIGKILL) 1.5 s into the mission and started again 1 s later; it
+    // replays its durable log (keyframes with clouds, accepted loops) before going on.
     const auto run = testing::Shell(
         "(" + robot + " --id 0 > " + (dir_ / "r0.log").string() + " 2>&1; echo $? > " +
         (dir_ / "r0.rc").string() + ") & " + robot + " --id 1 > /dev/null 2>&1 & victim=$!; " +
@@ -143,6 +145,7 @@ TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum)
     rc0 >> code0;
     EXPECT_EQ(code0, 0);
     EXPECT_NE(run.out.find("\"certified\": true"), std::string::npos) << run.out;
+    EXPECT_GT(std::filesystem::file_size(dir_ / "logs" / "robot1.keyframes.log"), 0u);
     for (int r = 0; r < 2; ++r) {
         const std::string name = "robot" + std::to_string(r) + ".tum";
         EXPECT_LT(

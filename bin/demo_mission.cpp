@@ -352,6 +352,14 @@ DemoReport RunDemoMission(const DemoOptions& options) {
                               {"inter_robot_loops", run.inter_robot_loops},
                               {"rmse_certified", Score(team, run.trajectory).rmse}};
         report.timings["actor_graph"] = run.seconds;
+        const auto actor_rmse = Score(team, run.trajectory).rmse;
+        for (size_t r = 0; r < actor_rmse.size() && r < report.robots.size(); ++r) {
+            if (actor_rmse[r] > report.robots[r].odometry) {
+                report.warnings.push_back("actor graph: robot " + std::to_string(r) +
+                                          "'s certified RMSE " + Fixed(actor_rmse[r]) +
+                                          " m is worse than its odometry's (wrong loops?)");
+            }
+        }
     }
     slam::TriangleMesh mesh;
     const auto map_start = Clock::now();

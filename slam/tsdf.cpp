@@ -235,7 +235,7 @@ TsdfIntegrateResult TsdfVolume::Integrate(const PointCloud& points,
     ends.reserve(points.size());
     for (const auto& p : points) {
         const float r2 = p.squaredNorm();
-        if (r2 >= min_sq && r2 <= max_sq && std::isfinite(r2)) ends.push_back(R * p + origin);
+        if (r2 >= min_sq && r2 <= max_sq && std::isfinite(r2)) ends.emplace_back(R * p + origin);
     }
     TsdfIntegrateResult result;
     result.points_used = ends.size();

@@ -137,7 +137,8 @@ RbcdAgent::RbcdAgent(const Eigen::SparseMatrix<double>& Q, int d, const Partitio
     m.Qna.resize(b * static_cast<int>(m.neighbor_ids.size()), cols);
     m.Qna.setFromTriplets(cross.begin(), cross.end());
     Eigen::SparseMatrix<double> M = m.Qaa;
-    for (int c = 0; c < cols; ++c) M.coeffRef(c, c) += config.precon_regulariser * max_diag;
+    for (int c = 0; c < cols; ++c)
+        M.coeffRef(c, c) += config.precon_regulariser * (max_diag > 0.0 ? max_diag : 1.0);
     m.factor.setMode(Eigen::CholmodSupernodalLLt);
     m.factor.compute(M);
     CERTISLAM_CHECK(m.factor.info() == Eigen::Success);

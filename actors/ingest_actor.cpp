@@ -21,7 +21,9 @@ void IngestConfig::Validate() const {
 
 IngestActor::IngestActor(zmq::context_t& context, TeamWiring wiring, KeyframeSource source,
                          IngestConfig config)
-    : NodeActor("ingest", context, std::move(wiring)), source_(std::move(source)), config_(config) {
+    : NodeActor("ingest", context, std::move(wiring)),
+      source_(std::move(source)),
+      config_(std::move(config)) {
     config_.Validate();
 }
 

@@ -32,7 +32,7 @@ void LoopMatcherConfig::Validate() const {
 
 LoopMatcherActor::LoopMatcherActor(zmq::context_t& context, TeamWiring wiring,
                                    LoopMatcherConfig config)
-    : NodeActor("loop_matcher", context, std::move(wiring)), config_(std::move(config)) {
+    : NodeActor("loop_matcher", context, std::move(wiring)), config_(config) {
     config_.Validate();
 }
 

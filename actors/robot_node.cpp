@@ -12,7 +12,7 @@ void RobotNodeConfig::Validate() const {
     if (quiet.count() < 0) throw std::invalid_argument("RobotNodeConfig.quiet: must be >= 0");
 }
 
-RobotNode::RobotNode(zmq::context_t& context, TeamWiring wiring, KeyframeSource source,
+RobotNode::RobotNode(zmq::context_t& context, const TeamWiring& wiring, KeyframeSource source,
                      RobotNodeConfig config)
     : robot_(wiring.robot), config_(std::move(config)) {
     config_.Validate();

@@ -30,7 +30,7 @@ struct RobotNodeConfig {
 class RobotNode {
   public:
     /// `context` must outlive the node (shared by all robots of a process for inproc).
-    RobotNode(zmq::context_t& context, TeamWiring wiring, KeyframeSource source,
+    RobotNode(zmq::context_t& context, const TeamWiring& wiring, KeyframeSource source,
               RobotNodeConfig config);
     ~RobotNode();
 

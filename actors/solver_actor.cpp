@@ -17,7 +17,8 @@ void SolverActorConfig::Validate() const {
     }
 }
 
-SolverActor::SolverActor(zmq::context_t& context, TeamWiring wiring, SolverActorConfig config)
+SolverActor::SolverActor(zmq::context_t& context, const TeamWiring& wiring,
+                         const SolverActorConfig& config)
     : NodeActor("solver", context, wiring), config_(config), state_(wiring.robot, config.solver) {
     config_.Validate();
 }

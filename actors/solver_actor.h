@@ -52,7 +52,7 @@ struct SolverSnapshot {
 /// One robot's RBCD solver.
 class SolverActor final : public NodeActor {
   public:
-    SolverActor(zmq::context_t& context, TeamWiring wiring, SolverActorConfig config);
+    SolverActor(zmq::context_t& context, const TeamWiring& wiring, const SolverActorConfig& config);
     ~SolverActor() override { Stop(); }
 
     /// The state now (thread-safe).

@@ -224,7 +224,7 @@ SolverState::SolverState(int robot, SolverConfig config) : impl_(std::make_uniqu
     impl_->robot = robot;
     impl_->rank = config.rank;
     impl_->frame_robot = robot;
-    impl_->config = std::move(config);
+    impl_->config = config;
     impl_->X.resize(impl_->rank, 0);
 }
 SolverState::~SolverState() = default;

@@ -209,7 +209,7 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
     report["bytes_per_keyframe"] = keyframes > 0 ? double(bytes_sent) / keyframes : 0.0;
     report["keyframes_per_second"] = seconds > 0 ? keyframes / seconds : 0.0;
     report["seconds"] = seconds;
-    const std::string text = report.dump(2);
+    std::string text = report.dump(2);
     if (!dir.empty()) std::ofstream(dir + "/report.json") << text << "\n";
     return text;
 }

@@ -2,8 +2,8 @@
 // on one robot's block, min tr(X Q X^T) + 2 <X, G> over the product of St(d, r) x R^r.
 #pragma once
 
-#include <Eigen/Core>
 #include <Eigen/CholmodSupport>
+#include <Eigen/Core>
 #include <Eigen/SparseCore>
 
 namespace certislam::slam {

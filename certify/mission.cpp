@@ -50,6 +50,19 @@ PoseMatrix Anchor(const PoseMatrix& poses) {
     return out;
 }
 
+// Poses anchored at pose 0 = identity, re-expressed in the frame where pose 0 is T_team_first
+// (the team frame is robot 0's odometry frame, so pose 0 is robot 0's first odometry pose).
+PoseMatrix InTeamFrame(const Eigen::Isometry3d& T_team_first, const PoseMatrix& anchored) {
+    const int n = static_cast<int>(anchored.cols() / 4);
+    PoseMatrix out(3, 4 * n);
+    const Eigen::Matrix3d R = T_team_first.linear();
+    for (int g = 0; g < n; ++g) {
+        out.block<3, 3>(0, 4 * g) = R * anchored.block<3, 3>(0, 4 * g);
+        out.col(4 * g + 3) = R * anchored.col(4 * g + 3) + T_team_first.translation();
+    }
+    return out;
+}
+
 PoseMatrix FromIsometries(const std::vector<std::vector<Eigen::Isometry3d>>& poses) {
     int n = 0;
     for (const auto& robot : poses) n += static_cast<int>(robot.size());
@@ -193,6 +206,9 @@ MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
                          const std::vector<std::vector<Eigen::Isometry3d>>& truth,
                          const MissionConfig& config, const MissionProgress& progress) {
     config.Validate();
+    if (robots.empty() || robots[0].empty()) {
+        throw std::invalid_argument("robots: robot 0 has no keyframes (it anchors the team frame)");
+    }
     const auto report = [&](const std::string& stage, double f) {
         if (progress) progress(stage, f);
     };
@@ -229,10 +245,15 @@ MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
         LocalSearchJoint(result.graph, FromIsometries(odometry), config.solver);
     result.local_search_from_alignment =
         LocalSearchJoint(result.graph, one_time_poses, config.solver);
+    const Eigen::Isometry3d& T_team_first = odometry[0][0];
+    for (auto* run : {&result.local_search_from_odometry, &result.local_search_from_alignment}) {
+        run->poses = InTeamFrame(T_team_first, run->poses);
+    }
     result.local_search =
         SplitTrajectories(result.graph, result.local_search_from_odometry.poses, robots);
     report("certified RBCD", 0.75);
     result.solution = SolveCertifiedJoint(result.graph, config.solver);
+    result.solution.poses = InTeamFrame(T_team_first, result.solution.poses);
     result.certified = SplitTrajectories(result.graph, result.solution.poses, robots);
     if (result.status == MissionResult::Status::kOk &&
         result.solution.certificate.status != certify::CertificateResult::Status::kCertified) {

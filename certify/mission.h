@@ -55,7 +55,8 @@ struct MissionConfig {
 
 /// The solution of the joint graph by certified RBCD.
 struct JointSolution {
-    slam::PoseMatrix poses;  ///< 3 x 4n, anchored: pose 0 = identity
+    /// 3 x 4n: pose 0 = identity from SolveCertifiedJoint, the team frame from RunMission.
+    slam::PoseMatrix poses;
     slam::RbcdResult::Status rbcd_status =
         slam::RbcdResult::Status::kMaxIterations;  ///< last RBCD run
     int rank = 0;                                  ///< rank of the final (certified) run
@@ -68,7 +69,8 @@ struct JointSolution {
 
 /// One run of the local-search baseline (LM) from one initial guess, and its certificate.
 struct LocalSearchRun {
-    slam::PoseMatrix poses;  ///< 3 x 4n, anchored: pose 0 = identity
+    /// 3 x 4n: pose 0 = identity from LocalSearchJoint, the team frame from RunMission.
+    slam::PoseMatrix poses;
     slam::LmResult::Status status = slam::LmResult::Status::kFailed;  ///< LM's outcome
     double initial_cost = 0.0;                                        ///< f at the guess
     double cost = 0.0;                                                ///< f at the LM solution

@@ -104,6 +104,7 @@ int RunFrontendBench(int argc, char** argv) {
     auto start = Clock::now();
     double cpu = CpuMs();
     std::vector<slam::ScanContext> bases;
+    bases.reserve(static_cast<std::size_t>(descriptor_repeats) + 21);
     for (int k = 0; k < descriptor_repeats; ++k) {
         bases.push_back(slam::MakeScanContext(scans[k % scans.size()], sc));
     }
@@ -123,6 +124,7 @@ int RunFrontendBench(int argc, char** argv) {
     for (int k = 0; k < stored; ++k) db.Add({1, k}, Perturbed(bases[k % bases.size()], rng));
     const double insert_ms = Ms(start) / stored;
     std::vector<slam::ScanContext> query_descriptors;
+    query_descriptors.reserve(static_cast<std::size_t>(queries));
     for (int q = 0; q < queries; ++q) {
         query_descriptors.push_back(Perturbed(bases[q % bases.size()], rng));
     }

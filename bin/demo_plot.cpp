@@ -150,10 +150,10 @@ bool WriteDemoPlot(const std::string& path, const DemoPlotInput& input, std::str
         << "\" y=\"22\" font-size=\"16\">" << input.title << "</text>\n";
     Legend(out, input, kGapPx, 44.0);
     for (size_t m = 0; m < input.methods.size(); ++m) {
-        const double px =
-            kGapPx + static_cast<double>(m % kMapColumns) * (kMapPanelWidthPx + kGapPx);
-        const double py =
-            70.0 + kGapPx / 2 + static_cast<double>(m / kMapColumns) * (map_h + kGapPx);
+        const std::size_t column = m % kMapColumns;
+        const std::size_t row = m / kMapColumns;  // panel grid position (integer division)
+        const double px = kGapPx + static_cast<double>(column) * (kMapPanelWidthPx + kGapPx);
+        const double py = 70.0 + kGapPx / 2.0 + static_cast<double>(row) * (map_h + kGapPx);
         MapPanel(out, input, input.methods[m], box, px, py, kMapPanelWidthPx, map_h);
     }
     for (size_t r = 0; r < input.ground_truth.size(); ++r) {

@@ -85,7 +85,7 @@ Eigen::MatrixXd EscapeSaddle(const Eigen::SparseMatrix<double>& Q, const Eigen::
     Eigen::MatrixXd direction = Eigen::MatrixXd::Zero(r + 1, X.cols());
     direction.row(r) = v.transpose();
     for (double alpha = 1e2 * std::max(1.0, X.norm()); alpha > 1e-10; alpha *= 0.5) {
-        const Eigen::MatrixXd candidate = Retract(X_plus, alpha * direction, 3);
+        Eigen::MatrixXd candidate = Retract(X_plus, alpha * direction, 3);
         if (LiftedCost(Q, candidate) < f0) return candidate;
     }
     return X_plus;

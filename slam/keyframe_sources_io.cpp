@@ -163,13 +163,16 @@ KeyframeSourceResult ReadScLioSamFolder(const std::string& folder,
     for (int k = 0; fs::exists(scans + "/" + ScanName(k, "pcd")); ++k) {
         const std::string path = scans + "/" + ScanName(k, "pcd");
         if (k >= static_cast<int>(poses.size())) {
-            return Fail(Status::kBadPoses,
-                        folder + "/optimized_poses.txt: " + std::to_string(poses.size()) +
-                            " poses but scan " + path + " exists");
+            std::string why = folder;
+            why += "/optimized_poses.txt: " + std::to_string(poses.size());
+            why += " poses but scan " + path + " exists";
+            return Fail(Status::kBadPoses, why);
         }
         if (k >= static_cast<int>(times.size())) {
-            return Fail(Status::kBadTimes, folder + "/times.txt: " + std::to_string(times.size()) +
-                                               " times but scan " + path + " exists");
+            std::string why = folder;
+            why += "/times.txt: " + std::to_string(times.size());
+            why += " times but scan " + path + " exists";
+            return Fail(Status::kBadTimes, why);
         }
         Keyframe kf;
         kf.T_odom_sensor = poses[k];
@@ -211,8 +214,10 @@ KeyframeSourceResult ReadKittiOdometryFolder(const std::string& folder,
         const int frame = frames[p];
         const std::string path = velodyne + "/" + ScanName(frame, "bin");
         if (!fs::exists(path)) {
-            return Fail(Status::kCannotOpen, path + ": missing scan for pose line of frame " +
-                                                 std::to_string(frame) + " in " + poses_path);
+            std::string why = path;
+            why += ": missing scan for pose line of frame " + std::to_string(frame);
+            why += " in " + poses_path;
+            return Fail(Status::kCannotOpen, why);
         }
         Keyframe kf;
         kf.T_odom_sensor = poses[p] * Tr;  // T_world_velo = T_world_cam0 * Tr

@@ -88,6 +88,7 @@ std::vector<LoopClosure> RejectOutliers(const std::vector<std::vector<Keyframe>>
         for (const auto& kf : robots[r]) odometry[r].push_back(kf.T_odom_sensor);
     }
     std::vector<PcmMeasurement> measurements;
+    measurements.reserve(verified.size());
     for (const auto& v : verified) {
         measurements.push_back({v.loop.a, v.loop.b, v.loop.T_a_b, v.information});
     }

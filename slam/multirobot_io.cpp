@@ -93,8 +93,9 @@ PoseGraphReadResult ReadMultiRobotCsv(const std::string& dir) {
             }
             CsvEdge e;
             if (const std::string reason = ParseRow(line, &e); !reason.empty()) {
-                return Fail(Status::kParseError,
-                            path + ":" + std::to_string(line_no) + ": " + reason);
+                std::string where = path;
+                where += ":" + std::to_string(line_no) + ": ";
+                return Fail(Status::kParseError, where + reason);
             }
             if (e.src.robot != e.dst.robot &&
                 !inter_seen.insert({e.src.robot, e.src.index, e.dst.robot, e.dst.index}).second) {

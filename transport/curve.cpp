@@ -38,8 +38,11 @@ std::string ReadKeyLine(const std::string& path, const std::string& want_tag) {
             continue;
         }
         if (!IsValidZ85Key(key)) {
-            throw std::runtime_error(path + ":" + std::to_string(number) + ": '" + key +
-                                     "' is not a 40-character Z85 key");
+            std::string why = path;
+            why += ":" + std::to_string(number) + ": '";
+            why += key;
+            why += "' is not a 40-character Z85 key";
+            throw std::runtime_error(why);
         }
         return key;
     }

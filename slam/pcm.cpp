@@ -10,32 +10,14 @@
 #include <utility>
 
 #include "slam/check.h"
+#include "slam/se3.h"
 
 namespace certislam::slam {
 namespace {
 
-using Matrix6 = Eigen::Matrix<double, 6, 6>;
-using Vector6 = Eigen::Matrix<double, 6, 1>;
-
 [[noreturn]] void Invalid(const std::string& field, double value, const std::string& rule) {
     throw std::invalid_argument("PcmConfig." + field + " = " + std::to_string(value) +
                                 ": must be " + rule);
-}
-
-Eigen::Matrix3d Hat(const Eigen::Vector3d& v) {
-    Eigen::Matrix3d m;
-    m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-    return m;
-}
-
-// Adjoint for twists ordered (v, w): T exp(d) = exp(Ad_T d) T.
-Matrix6 Adjoint(const Eigen::Isometry3d& T) {
-    Matrix6 ad = Matrix6::Zero();
-    const Eigen::Matrix3d R = T.rotation();
-    ad.topLeftCorner<3, 3>() = R;
-    ad.topRightCorner<3, 3>() = Hat(T.translation()) * R;
-    ad.bottomRightCorner<3, 3>() = R;
-    return ad;
 }
 
 // (translation, rotation vector) of a pose: the SE(3) log to first order in the rotation.

@@ -10,22 +10,14 @@
 #include "slam/check.h"
 #include "slam/point_kdtree.h"
 #include "slam/registration.h"
+#include "slam/se3.h"
 
 namespace certislam::slam {
 namespace {
 
-using Matrix6 = Eigen::Matrix<double, 6, 6>;
-using Vector6 = Eigen::Matrix<double, 6, 1>;
-
 [[noreturn]] void Invalid(const std::string& field, double value, const std::string& rule) {
     throw std::invalid_argument("RegistrationConfig." + field + " = " + std::to_string(value) +
                                 ": must be " + rule);
-}
-
-Eigen::Matrix3d Hat(const Eigen::Vector3d& v) {
-    Eigen::Matrix3d m;
-    m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-    return m;
 }
 
 // Unit normal of the target around point `i` (smallest-eigenvalue direction of its k
@@ -59,16 +51,6 @@ class TargetNormals {
     std::vector<float> squared_;
     std::unordered_map<std::size_t, Eigen::Vector3d> cache_;
 };
-
-// Adjoint of T for twists ordered (v, w): exp(Ad_T d) T = T exp(d).
-Matrix6 Adjoint(const Eigen::Isometry3d& T) {
-    Matrix6 ad = Matrix6::Zero();
-    const Eigen::Matrix3d R = T.rotation();
-    ad.topLeftCorner<3, 3>() = R;
-    ad.topRightCorner<3, 3>() = Hat(T.translation()) * R;
-    ad.bottomRightCorner<3, 3>() = R;
-    return ad;
-}
 
 // Applies the covariance floor: Omega <- (Omega^+ + diag(floor^2))^-1, through the eigen
 // decomposition so unconstrained directions (zero eigenvalues) stay finite.

@@ -15,12 +15,14 @@ namespace certislam::slam {
 /// How a keyframe source was read.
 struct KeyframeSourceResult {
     enum class Status {
-        kOk,          ///< `keyframes` holds them
-        kCannotOpen,  ///< a folder or file is missing or unreadable
-        kBadPoses,    ///< a poses/calibration line is malformed (not 12 numbers, non-finite)
-        kBadTimes,    ///< a times line is malformed, or times are fewer than keyframes
-        kBadScan,     ///< a scan file is corrupt or truncated
-        kNoScans,     ///< no scan files in the folder
+        kOk,            ///< `keyframes` holds them
+        kCannotOpen,    ///< a folder or file is missing or unreadable
+        kBadPoses,      ///< a poses/calibration line is malformed (not 12 numbers, non-finite)
+        kBadTimes,      ///< a times line is malformed, or times are fewer than keyframes
+        kBadScan,       ///< a scan file is corrupt or truncated
+        kNoScans,       ///< no scan files in the folder
+        kBadBag,        ///< a ROS bag is not a bag, corrupt or truncated
+        kMissingTopic,  ///< a ROS bag lacks a topic (or its type differs, or nothing paired)
     };
     Status status = Status::kOk;      ///< verdict
     std::vector<Keyframe> keyframes;  ///< index 0.., in time order (empty unless kOk)

@@ -9,6 +9,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev libspectra-dev
   libpcl-dev mpi-default-dev libnanoflann-dev libopenvdb-dev libtbb-dev libceres-dev
   libcli11-dev nlohmann-json3-dev libyaml-cpp-dev libclang-rt-14-dev iproute2
+  librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev pluginlib-dev libament-index-cpp-dev
+  libzstd-dev
 )
 
 missing=()

@@ -9,6 +9,8 @@
 
 namespace certislam::transport {
 
+class ShmSegment;
+
 /// An immutable, reference-counted byte buffer. Copies of a SharedBuffer share the bytes.
 /// Sent over inproc it travels as a handle (zmq_msg_init_data with a release callback), so the
 /// receiver's data() is the sender's data(); the bytes are freed when the last holder, on either
@@ -44,8 +46,16 @@ class SharedBuffer {
     /// The storage owner (for handing the buffer to other zero-copy APIs).
     const std::shared_ptr<const void>& owner() const { return owner_; }
 
+    /// The bytes [0, size) of a shared-memory segment this process wrote and sealed (see
+    /// WritableBuffer in transport/shm_buffer.h): an ipc:// Endpoint lends them to the reader
+    /// process without a copy. The segment must not be written any more.
+    static SharedBuffer InShm(std::shared_ptr<ShmSegment> segment, std::size_t size);
+    /// The segment holding the bytes when the buffer was made by InShm, else null.
+    const std::shared_ptr<ShmSegment>& shm_segment() const { return shm_segment_; }
+
   private:
     std::shared_ptr<const void> owner_;
+    std::shared_ptr<ShmSegment> shm_segment_;
     const std::byte* data_ = nullptr;
     std::size_t size_ = 0;
 };

@@ -39,7 +39,9 @@ std::string ReadKeyLine(const std::string& path, const std::string& want_tag) {
         }
         if (!IsValidZ85Key(key)) {
             std::string why = path;
-            why += ":" + std::to_string(number) + ": '";
+            why += ':';
+            why += std::to_string(number);  // not ":" + string: GCC 12 -Wrestrict false positive
+            why += ": '";
             why += key;
             why += "' is not a 40-character Z85 key";
             throw std::runtime_error(why);

@@ -46,6 +46,13 @@ Endpoint::Endpoint(zmq::context_t& context, EndpointConfig config)
         bound_.push_back(socket_.get(zmq::sockopt::last_endpoint));
     }
     for (const auto& address : config_.connect) socket_.connect(address);
+    if (config_.UsesShm()) {
+        if (config_.role != Role::kPull && config_.role != Role::kSubscriber) {
+            shm_lender_ = std::make_unique<ShmLender>(config_.shm, config_.shm_threshold_bytes,
+                                                      config_.shm_pool_segments);
+        }
+        if (Receives(config_.role)) shm_resolver_ = std::make_unique<ShmResolver>(config_.shm);
+    }
 }
 
 Endpoint::~Endpoint() = default;
@@ -88,20 +95,54 @@ EndpointCounters Endpoint::counters() const {
     c.dropped_queue_full = counters_.dropped_queue_full.load();
     c.send_backpressure = counters_.send_backpressure.load();
     c.control_received = counters_.control_received.load();
+    c.dropped_shm = counters_.dropped_shm.load();
+    c.shm_received = counters_.shm_received.load();
+    c.shm_lent = counters_.shm_lent.load();
+    c.shm_copied = counters_.shm_copied.load();
+    c.shm_copy_ns = counters_.shm_copy_ns.load();
+    c.shm_fallback = counters_.shm_fallback.load();
     return c;
+}
+
+WritableBuffer Endpoint::Allocate(std::size_t size) {
+    if (shm_lender_ != nullptr && size >= config_.shm_threshold_bytes) {
+        auto buffer = WritableBuffer::Shm(size, config_.shm);
+        if (buffer.ok()) return std::move(*buffer.value);
+    }
+    return WritableBuffer::Heap(size);
 }
 
 SendStatus Endpoint::Send(const Message& message) {
     if (config_.role == Role::kPublisher) Pump();  // take in subscriptions first
-    return SendFrames(Encode(message));
+    return SendMessage(nullptr, message);
 }
 
 SendStatus Endpoint::SendTo(std::string_view peer, const Message& message) {
+    const std::string id(peer);
+    return SendMessage(&id, message);
+}
+
+SendStatus Endpoint::SendMessage(const std::string* peer, const Message& message) {
+    // A publisher lends one reference per subscriber; the other roles deliver to one peer.
+    const int readers = config_.role == Role::kPublisher ? ClampInt(subscribers_) : 1;
+    ShmLoans loans;
+    std::optional<Message> wire;
+    if (shm_lender_ != nullptr && readers > 0 && shm_lender_->Wants(message)) {
+        wire = message;  // the envelope and frame handles; the bytes are not copied here
+        ShmLendStats stats;
+        shm_lender_->Lend(*wire, readers, loans, stats);
+        counters_.shm_lent.fetch_add(stats.lent);
+        counters_.shm_copied.fetch_add(stats.copied);
+        counters_.shm_copy_ns.fetch_add(stats.copy_ns);
+        counters_.shm_fallback.fetch_add(stats.fallback);
+    }
     std::vector<zmq::message_t> frames;
-    frames.emplace_back(peer.data(), peer.size());
-    auto body = Encode(message);
+    if (peer != nullptr) frames.emplace_back(peer->data(), peer->size());
+    auto body = Encode(wire ? *wire : message);
     std::move(body.begin(), body.end(), std::back_inserter(frames));
-    return SendFrames(std::move(frames));
+    const SendStatus status = SendFrames(std::move(frames));
+    if (status != SendStatus::kSent) loans.Revoke();  // nobody will open those descriptors
+    return status;
 }
 
 SendStatus Endpoint::SendFrames(std::vector<zmq::message_t>&& frames) {
@@ -201,8 +242,22 @@ void Endpoint::HandleFrames(std::vector<zmq::message_t>&& frames) {
     }
     message.peer = std::move(peer);
     message.user_id = std::move(user_id);
+    if (!ResolveShm(message)) return;
     if (HandleControl(message)) return;
     Enqueue(std::move(message));
+}
+
+bool Endpoint::ResolveShm(Message& message) {
+    if (!HasShmFrames(message)) return true;
+    std::string detail;
+    // Descriptors are honoured only on an ipc-only edge: a tcp peer cannot name this host's
+    // segments, and a forged one must not take references meant for a local reader.
+    if (shm_resolver_ == nullptr || !shm_resolver_->Resolve(message, detail)) {
+        counters_.dropped_shm.fetch_add(1);
+        return false;
+    }
+    counters_.shm_received.fetch_add(1);
+    return true;
 }
 
 void Endpoint::HandleSubscription(const zmq::message_t& frame) {

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -15,6 +16,8 @@
 
 #include "transport/endpoint_config.h"
 #include "transport/message.h"
+#include "transport/shm_buffer.h"
+#include "transport/shm_edge.h"
 
 namespace certislam::transport {
 
@@ -28,6 +31,12 @@ struct EndpointCounters {
     std::uint64_t dropped_queue_full = 0;    ///< kLatest: oldest dropped (receive) or send dropped
     std::uint64_t send_backpressure = 0;     ///< kReliable: Send gave up after send_timeout_ms
     std::uint64_t control_received = 0;      ///< handshake messages consumed by the endpoint
+    std::uint64_t dropped_shm = 0;   ///< shm descriptor forged, malformed, stale or not on ipc
+    std::uint64_t shm_received = 0;  ///< messages whose frames came through shm (mapped, no copy)
+    std::uint64_t shm_lent = 0;      ///< frames sent from the producer's own segment (no copy)
+    std::uint64_t shm_copied = 0;    ///< frames sent by one copy into a pooled segment
+    std::uint64_t shm_copy_ns = 0;   ///< total time of those copies
+    std::uint64_t shm_fallback = 0;  ///< large frames sent inline: no segment could be made
 };
 
 /// Outcome of a send.
@@ -54,6 +63,12 @@ class Endpoint {
     SendStatus Send(const Message& message);
     /// Sends a message to one peer of a ROUTER (peer = Message::peer of one of its messages).
     SendStatus SendTo(std::string_view peer, const Message& message);
+
+    /// A buffer for the producer to fill and Seal() into a frame of a message to send here. On
+    /// an edge that uses shared memory (EndpointConfig::UsesShm) and for at least
+    /// shm_threshold_bytes it lies in a segment, so Send lends it to the reader with no copy at
+    /// all; otherwise (or when no segment can be made) it is private memory.
+    WritableBuffer Allocate(std::size_t size);
 
     /// The next valid message, or nullopt when none is available now (never blocks). Bad
     /// messages met on the way are dropped and counted.
@@ -90,7 +105,8 @@ class Endpoint {
     struct AtomicCounters {
         std::atomic<std::uint64_t> sent{0}, received{0}, dropped_malformed{0}, dropped_version{0},
             dropped_unauthorized{0}, dropped_queue_full{0}, send_backpressure{0},
-            control_received{0};
+            control_received{0}, dropped_shm{0}, shm_received{0}, shm_lent{0}, shm_copied{0},
+            shm_copy_ns{0}, shm_fallback{0};
     };
 
     void Configure();
@@ -101,6 +117,8 @@ class Endpoint {
     bool HandleControl(const Message& message);
     void Enqueue(Message&& message);
     SendStatus SendFrames(std::vector<zmq::message_t>&& frames);
+    SendStatus SendMessage(const std::string* peer, const Message& message);
+    bool ResolveShm(Message& message);
     Message MakeControl(std::uint64_t nonce, bool hello) const;
 
     EndpointConfig config_;
@@ -113,6 +131,8 @@ class Endpoint {
     std::size_t subscribers_ = 0;
     std::uint64_t hello_nonce_ = 0;
     std::uint64_t control_sequence_ = 0;
+    std::unique_ptr<ShmLender> shm_lender_;      ///< set when the edge uses shm and sends
+    std::unique_ptr<ShmResolver> shm_resolver_;  ///< set when the edge uses shm and receives
 };
 
 }  // namespace certislam::transport

@@ -1,6 +1,7 @@
 // Validation of endpoint configurations and the logical edge table.
 #include "transport/endpoint_config.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace certislam::transport {
@@ -16,6 +17,9 @@ bool IsSupportedAddress(const std::string& address) {
 }
 
 namespace {
+
+/// Bound on EndpointConfig::shm_pool_segments.
+constexpr std::size_t kMaxShmPoolSegments = 64;
 
 [[noreturn]] void Reject(const EndpointConfig& config, const std::string& field,
                          const std::string& value, const std::string& rule) {
@@ -55,6 +59,23 @@ void EndpointConfig::Validate() const {
     }
     if (curve) curve->Validate();
     limits.Validate();
+    if (shm_threshold_bytes == 0) Reject(*this, "shm_threshold_bytes", "0", "must be positive");
+    if (shm_pool_segments > kMaxShmPoolSegments) {
+        Reject(*this, "shm_pool_segments", std::to_string(shm_pool_segments),
+               "must be at most " + std::to_string(kMaxShmPoolSegments));
+    }
+    try {
+        shm.Validate();
+    } catch (const std::invalid_argument& e) {
+        Reject(*this, "shm", "", e.what());
+    }
+}
+
+bool EndpointConfig::UsesShm() const {
+    if (!shm_enabled) return false;
+    const auto is_ipc = [](const std::string& address) { return address.rfind("ipc://", 0) == 0; };
+    return std::all_of(bind.begin(), bind.end(), is_ipc) &&
+           std::all_of(connect.begin(), connect.end(), is_ipc);
 }
 
 void EdgeTable::Add(const std::string& key, EndpointConfig config) {

@@ -11,6 +11,7 @@
 
 #include "transport/curve.h"
 #include "transport/message.h"
+#include "transport/shm_segment.h"
 
 namespace certislam::transport {
 
@@ -47,10 +48,21 @@ struct EndpointConfig {
     DecodeLimits limits;                       ///< bounds on received frames
     std::uint32_t robot_id = 0;                ///< this robot, stamped on control messages it sends
     std::string node_name;                     ///< this actor, stamped on control messages it sends
+    /// An edge whose addresses are all ipc:// moves each binary frame of at least
+    /// shm_threshold_bytes through POSIX shared memory: only a descriptor goes on the socket and
+    /// the receiver's frame points into its read-only mapping. Receivers accept descriptors
+    /// only on such an edge (elsewhere they are dropped and counted).
+    bool shm_enabled = true;
+    std::size_t shm_threshold_bytes = std::size_t{64} << 10;  ///< smallest frame sent via shm
+    std::size_t shm_pool_segments = 4;  ///< pre-faulted segments kept for copies of heap frames
+    ShmConfig shm;                      ///< segment family, loan time-to-live, size bound
 
     /// Throws std::invalid_argument naming the field, value and rule (no address, an address
     /// that is not inproc://, ipc:// or tcp://, a zero bound, bad keys).
     void Validate() const;
+
+    /// True when every address is ipc:// (so both ends share the host) and shm is enabled.
+    bool UsesShm() const;
 };
 
 /// Logical edge name -> endpoint configurations, filled from the configuration file.

@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstring>
@@ -172,8 +173,9 @@ ShmResult<ShmSegment> ShmSegment::Create(std::size_t capacity, const ShmConfig& 
     mapping->header = MapHeader(mapping->fd);
     if (mapping->header == nullptr) return fail("mmap header");
     if (capacity > 0) {
-        void* p = ::mmap(nullptr, capacity, PROT_READ | PROT_WRITE, MAP_SHARED, mapping->fd,
-                         static_cast<off_t>(kHeaderBytes));
+        // Populated at once: the writer's copy then never takes a page fault per 4 KiB.
+        void* p = ::mmap(nullptr, capacity, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE,
+                         mapping->fd, static_cast<off_t>(kHeaderBytes));
         if (p == MAP_FAILED) return fail("mmap payload");
         mapping->payload = static_cast<std::byte*>(p);
         mapping->capacity = capacity;
@@ -225,6 +227,34 @@ ShmDescriptor ShmSegment::Publish(std::size_t length, int readers, std::size_t o
         shm_detail::MonotonicNowNs() +
         std::chrono::duration_cast<std::chrono::nanoseconds>(config_.loan_ttl).count();
     return ShmDescriptor{mapping_->name, offset, length, header.generation};
+}
+
+ShmDescriptor ShmSegment::Lend(std::size_t length, int readers) {
+    if (length > capacity()) {
+        throw std::invalid_argument("ShmSegment::Lend: length " + std::to_string(length) +
+                                    " exceeds capacity " + std::to_string(capacity()));
+    }
+    if (readers < 1) throw std::invalid_argument("ShmSegment::Lend: readers must be >= 1");
+    SegmentHeader& header = *mapping_->header;
+    const HeaderLock lock(&header);
+    if (header.published_offset != 0 || header.published_length != length) {
+        ++header.generation;
+        header.published_offset = 0;
+        header.published_length = length;
+        header.loans = 0;
+    }
+    if (!shm_detail::LoansPending(header)) header.loans = 0;  // expired ones are void
+    header.loans += readers;
+    header.loan_deadline_ns =
+        shm_detail::MonotonicNowNs() +
+        std::chrono::duration_cast<std::chrono::nanoseconds>(config_.loan_ttl).count();
+    return ShmDescriptor{mapping_->name, 0, length, header.generation};
+}
+
+void ShmSegment::Unlend(int readers) {
+    SegmentHeader& header = *mapping_->header;
+    const HeaderLock lock(&header);
+    header.loans = std::max<std::int64_t>(0, header.loans - readers);
 }
 
 bool ShmSegment::Reusable() {

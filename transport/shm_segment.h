@@ -96,6 +96,15 @@ class ShmSegment {
     /// std::invalid_argument when the range exceeds the capacity or readers < 1.
     ShmDescriptor Publish(std::size_t length, int readers = 1, std::size_t offset = 0);
 
+    /// Lends the immutable bytes [0, length) to `readers` more opens within loan_ttl without
+    /// changing them: the generation is kept while the published range stays [0, length), so
+    /// descriptors lent earlier stay valid (a sealed buffer sent on several edges). Throws
+    /// std::invalid_argument when length exceeds the capacity or readers < 1.
+    ShmDescriptor Lend(std::size_t length, int readers);
+
+    /// Takes back up to `readers` pending references (their descriptors were never sent).
+    void Unlend(int readers);
+
     /// True when the bytes may be overwritten: no other live holder, and no pending reference.
     bool Reusable();
 

@@ -29,7 +29,7 @@
 #include "certislam/v1/control.pb.h"
 #include "certislam/v1/keyframe.pb.h"
 #include "transport/endpoint.h"
-#include "transport/shm_segment.h"
+#include "transport/shm_buffer.h"
 
 namespace certislam::bin {
 namespace {
@@ -46,8 +46,9 @@ std::int64_t NowNs() {
 }
 
 /// How the buffer crosses the edge.
-/// kIpcShmLoan: the producer wrote the bytes in the segment itself (ShmSegment::writable() as a
-/// loan), so nothing is copied; kIpcShm copies them from private memory first.
+/// Both ipc-shm modes go through the Endpoint's own shared-memory path of an ipc:// edge.
+/// kIpcShmLoan: the producer wrote its bytes in a segment (Endpoint::Allocate), so nothing is
+/// copied; kIpcShm sends a private buffer, which the Endpoint copies into a pooled segment.
 enum class Mode { kInproc, kIpcShm, kIpcShmLoan, kIpcSocket, kTcp };
 
 const char* ModeName(Mode mode) {
@@ -88,7 +89,7 @@ double Median(std::vector<double> values) {
 }
 
 EndpointConfig EdgeConfig(const char* edge, transport::Role role, const std::string& address,
-                          bool bind) {
+                          bool bind, int socket_buffer_bytes = 0) {
     EndpointConfig config;
     config.edge = edge;
     config.role = role;
@@ -96,6 +97,7 @@ EndpointConfig EdgeConfig(const char* edge, transport::Role role, const std::str
     config.delivery = transport::Delivery::kReliable;
     config.send_timeout_ms = 30000;
     config.max_queue_bytes = std::size_t{2} << 30;
+    config.socket_buffer_bytes = socket_buffer_bytes;
     return config;
 }
 
@@ -118,45 +120,53 @@ Message SpinReceive(Endpoint& endpoint) {
 
 // The receiver: acknowledges every buffer with its arrival time until a Shutdown arrives.
 void ReceiverLoop(zmq::context_t& context, const std::string& data_address,
-                  const std::string& ack_address) {
-    Endpoint data(context, EdgeConfig("bench", transport::Role::kPull, data_address, false));
+                  const std::string& ack_address, int socket_buffer_bytes) {
+    Endpoint data(context, EdgeConfig("bench", transport::Role::kPull, data_address, false,
+                                      socket_buffer_bytes));
     Endpoint ack(context, EdgeConfig("bench-ack", transport::Role::kPush, ack_address, false));
-    transport::ShmReader reader;
     v1::Heartbeat hello;
     ack.Send(transport::Pack(hello));
     while (true) {
-        Message message = SpinReceive(data);
-        const std::int64_t arrived = NowNs();
-        if (message.Is<v1::Shutdown>()) return;
-        const auto keyframe = transport::Unpack<v1::Keyframe>(message);
-        if (!keyframe || message.frames.size() != 1) throw std::runtime_error("bad bench message");
-        std::optional<transport::ShmView> view;
-        std::span<const std::byte> bytes = message.frames[0].span();
-        if (message.envelope.frames(0).kind() == v1::FRAME_KIND_SHM_DESCRIPTOR) {
-            v1::ShmDescriptor descriptor;
-            descriptor.ParseFromArray(bytes.data(), static_cast<int>(bytes.size()));
-            auto opened = reader.Open(transport::FromProto(descriptor));
-            if (!opened.ok()) throw std::runtime_error("shm open: " + opened.detail);
-            view = std::move(*opened.value);
-            bytes = view->bytes();
-        }
         v1::Heartbeat reply;  // carries the first and last byte back: the bytes were read
-        reply.set_period_ms(std::to_integer<std::uint32_t>(bytes.front()) << 8 |
-                            std::to_integer<std::uint32_t>(bytes.back()));
-        view.reset();  // released before the ack: the sender may reuse the segment
-        reply.mutable_header()->set_sequence(keyframe->header().sequence());
+        std::uint64_t sequence = 0;
+        std::int64_t arrived = 0;
+        {
+            // Over ipc a large frame arrives as a view of the sender's shared-memory segment
+            // (the Endpoint maps the descriptor); it is released before the ack so the sender
+            // may reuse the segment.
+            const Message message = SpinReceive(data);
+            arrived = NowNs();
+            if (message.Is<v1::Shutdown>()) return;
+            const auto keyframe = transport::Unpack<v1::Keyframe>(message);
+            if (!keyframe || message.frames.size() != 1) {
+                throw std::runtime_error("bad bench message");
+            }
+            const std::span<const std::byte> bytes = message.frames[0].span();
+            reply.set_period_ms(std::to_integer<std::uint32_t>(bytes.front()) << 8 |
+                                std::to_integer<std::uint32_t>(bytes.back()));
+            sequence = keyframe->header().sequence();
+        }
+        reply.mutable_header()->set_sequence(sequence);
         reply.mutable_header()->set_stamp_ns(arrived);
         ack.Send(transport::Pack(reply));
     }
 }
 
-// The sending side of one transport: bound endpoints, the buffer, shared-memory segments.
+// The sender's data edge: ipc-socket is ipc with the Endpoint's shared-memory path turned off.
+EndpointConfig DataConfig(Mode mode, const std::string& address, int socket_buffer_bytes) {
+    EndpointConfig config =
+        EdgeConfig("bench", transport::Role::kPush, address, true, socket_buffer_bytes);
+    config.shm_enabled = mode != Mode::kIpcSocket;
+    return config;
+}
+
+// The sending side of one transport: bound endpoints, the buffer, the producer's shm buffers.
 class Sender {
   public:
     Sender(zmq::context_t& context, Mode mode, const std::string& data_address,
-           const std::string& ack_address)
+           const std::string& ack_address, int socket_buffer_bytes = 0)
         : mode_(mode),
-          data_(context, EdgeConfig("bench", transport::Role::kPush, data_address, true)),
+          data_(context, DataConfig(mode, data_address, socket_buffer_bytes)),
           ack_(context, EdgeConfig("bench-ack", transport::Role::kPull, ack_address, true)) {}
 
     std::string data_address() const { return data_.bound_addresses().front(); }
@@ -165,7 +175,11 @@ class Sender {
 
     Row Run(const Plan& plan) {
         Prepare(plan);
-        for (int i = 0; i < 3; ++i) Send(plan.bytes, i % plan.window), Ack();  // warm-up
+        // Warm-up: a full window in flight, so the Endpoint's segment pool is made (and its
+        // pages faulted in) before anything is timed.
+        for (int i = 0; i < plan.window; ++i) Send(plan.bytes, i);
+        for (int i = 0; i < plan.window; ++i) Ack();
+        for (int i = 0; i < 3; ++i) Send(plan.bytes, i % plan.window), Ack();
         std::vector<double> latencies;
         std::vector<double> beyond_copy;
         for (int i = 0; i < plan.latency_messages; ++i) {
@@ -182,7 +196,7 @@ class Sender {
         }
         while (in_flight-- > 0) Ack();
         const double seconds = static_cast<double>(NowNs() - start) * 1e-9;
-        segments_.clear();
+        loans_.clear();
         Row row{ModeName(mode_),
                 plan.bytes,
                 Median(latencies),
@@ -195,55 +209,38 @@ class Sender {
     void Shutdown() { data_.Send(transport::Pack(v1::Shutdown{})); }
 
   private:
-    bool UsesShm() const { return mode_ == Mode::kIpcShm || mode_ == Mode::kIpcShmLoan; }
-
     void Prepare(const Plan& plan) {
         std::vector<std::byte> bytes(plan.bytes);
         for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = std::byte(i * 131u + 7u);
         source_ = SharedBuffer::Adopt(std::move(bytes));
-        segments_.clear();
-        if (!UsesShm()) return;
+        loans_.clear();
+        if (mode_ != Mode::kIpcShmLoan) return;
+        // The producer writes its bytes where the Endpoint can lend them (shared memory on this
+        // ipc edge), once per slot of the window; sending them again copies nothing.
         for (int i = 0; i < plan.window; ++i) {
-            auto segment = transport::ShmSegment::Create(plan.bytes);
-            if (!segment.ok()) throw std::runtime_error("shm create: " + segment.detail);
-            // Faults the pages in; a loan holds the producer's bytes from the start.
-            auto writable = segment.value->writable();
-            if (mode_ == Mode::kIpcShmLoan) {
-                std::memcpy(writable.data(), source_.data(), plan.bytes);
-            } else {
-                std::memset(writable.data(), 0, plan.bytes);
-            }
-            segments_.push_back(std::move(*segment.value));
+            transport::WritableBuffer buffer = data_.Allocate(plan.bytes);
+            std::memcpy(buffer.bytes().data(), source_.data(), plan.bytes);
+            loans_.push_back(buffer.Seal());
         }
     }
 
-    // Sends one buffer and returns its send stamp; ipc-shm copies it into segment `slot` first.
+    // Sends one buffer and returns its send stamp. ipc-shm: the Endpoint copies the private
+    // buffer into a pooled segment (timed by its shm_copy_ns counter); ipc-shm-loan: the buffer
+    // of `slot` already lies in shared memory; the others: a handle, copied only by the socket.
     std::int64_t Send(std::size_t bytes, int slot) {
         v1::Keyframe keyframe;
         keyframe.mutable_header()->set_sequence(sequence_++);
         const std::int64_t sent = NowNs();
         keyframe.mutable_header()->set_stamp_ns(sent);
         Message message = transport::Pack(keyframe);
-        if (UsesShm()) {
-            auto& segment = segments_[static_cast<std::size_t>(slot)];
-            while (!segment.Reusable()) {
-            }
-            const std::int64_t copy_start = NowNs();
-            if (mode_ == Mode::kIpcShm) {
-                std::memcpy(segment.writable().data(), source_.data(), bytes);
-            }
-            copy_ns_ = NowNs() - copy_start;
-            const std::string descriptor =
-                transport::ToProto(segment.Publish(bytes)).SerializeAsString();
-            transport::AppendFrame(message,
-                                   SharedBuffer::Copy(descriptor.data(), descriptor.size()),
-                                   v1::FRAME_KIND_SHM_DESCRIPTOR);
-        } else {
-            transport::AppendFrame(message, source_);  // a handle: copied only by the socket
-        }
+        const bool loan = mode_ == Mode::kIpcShmLoan;
+        transport::AppendFrame(message, loan ? loans_[static_cast<std::size_t>(slot)] : source_);
+        const std::uint64_t copy_before = data_.counters().shm_copy_ns;
         if (data_.Send(message) != transport::SendStatus::kSent) {
             throw std::runtime_error("bench transport: send failed");
         }
+        copy_ns_ = static_cast<std::int64_t>(data_.counters().shm_copy_ns - copy_before);
+        if (bytes != message.frames[0].size()) throw std::logic_error("bench transport: size");
         return sent;
     }
 
@@ -262,7 +259,7 @@ class Sender {
     Endpoint data_;
     Endpoint ack_;
     SharedBuffer source_;
-    std::vector<transport::ShmSegment> segments_;
+    std::vector<SharedBuffer> loans_;  // ipc-shm-loan: the producer's buffers in shared memory
     std::uint64_t sequence_ = 0;
     std::int64_t copy_ns_ = 0;  // the last Send's copy into shared memory
 };
@@ -282,7 +279,7 @@ std::vector<Row> RunInproc(const std::vector<Plan>& plans) {
     std::exception_ptr failure;
     std::thread receiver([&] {
         try {
-            ReceiverLoop(context, "inproc://bench-data", "inproc://bench-ack");
+            ReceiverLoop(context, "inproc://bench-data", "inproc://bench-ack", 0);
         } catch (...) {
             failure = std::current_exception();
         }
@@ -295,7 +292,8 @@ std::vector<Row> RunInproc(const std::vector<Plan>& plans) {
 
 // Two processes: the child (forked before either side makes a ZeroMQ context) reads the
 // addresses the parent bound from a pipe, then runs the receiver.
-std::vector<Row> RunTwoProcesses(Mode mode, const std::vector<Plan>& plans) {
+std::vector<Row> RunTwoProcesses(Mode mode, const std::vector<Plan>& plans,
+                                 int socket_buffer_bytes) {
     const auto dir =
         std::filesystem::temp_directory_path() / ("certislam-bench-" + std::to_string(getpid()));
     std::filesystem::create_directories(dir);
@@ -317,7 +315,8 @@ std::vector<Row> RunTwoProcesses(Mode mode, const std::vector<Plan>& plans) {
         int status = 0;
         try {
             zmq::context_t context;
-            ReceiverLoop(context, both.substr(0, split), both.substr(split + 1));
+            ReceiverLoop(context, both.substr(0, split), both.substr(split + 1),
+                         socket_buffer_bytes);
         } catch (const std::exception& e) {
             std::fprintf(stderr, "bench transport receiver: %s\n", e.what());
             status = 1;
@@ -330,7 +329,8 @@ std::vector<Row> RunTwoProcesses(Mode mode, const std::vector<Plan>& plans) {
     {
         zmq::context_t context;
         Sender sender(context, mode, tcp ? "tcp://127.0.0.1:*" : "ipc://" + (dir / "data").string(),
-                      tcp ? "tcp://127.0.0.1:*" : "ipc://" + (dir / "ack").string());
+                      tcp ? "tcp://127.0.0.1:*" : "ipc://" + (dir / "ack").string(),
+                      socket_buffer_bytes);
         const std::string both = sender.data_address() + "\n" + sender.ack_address();
         if (write(fds[1], both.data(), both.size()) != static_cast<ssize_t>(both.size())) {
             throw std::runtime_error("pipe write failed");
@@ -417,15 +417,29 @@ int RunTransportBench(int argc, char** argv) {
     app.add_option("--max-bytes", max_bytes, "largest buffer size to run");
     app.add_option("--scale", scale, "multiply the message counts (e.g. 0.1 for a quick run)")
         ->check(CLI::PositiveNumber);
+    int socket_buffer_bytes = 0;
+    app.add_option("--socket-buffer-bytes", socket_buffer_bytes,
+                   "ZMQ_SNDBUF/ZMQ_RCVBUF of the data edge (0: OS default, autotuned)")
+        ->check(CLI::NonNegativeNumber);
+    std::vector<std::string> only;
+    app.add_option("--only", only,
+                   "run only these transports (inproc ipc-shm ipc-shm-loan "
+                   "ipc-socket tcp; memcpy always runs)");
     CLI11_PARSE(app, argc, argv);
+    const auto wanted = [&](Mode mode) {
+        return only.empty() || std::find(only.begin(), only.end(), ModeName(mode)) != only.end();
+    };
 
     const std::vector<Plan> plans = MakePlans(max_bytes, scale);
     std::vector<Row> rows;
     rows.reserve(plans.size() * 6);
     for (const auto& plan : plans) rows.push_back(RunMemcpy(plan));
-    for (auto& row : RunInproc(plans)) rows.push_back(row);
+    if (wanted(Mode::kInproc)) {
+        for (auto& row : RunInproc(plans)) rows.push_back(row);
+    }
     for (Mode mode : {Mode::kIpcShm, Mode::kIpcShmLoan, Mode::kIpcSocket, Mode::kTcp}) {
-        for (auto& row : RunTwoProcesses(mode, plans)) rows.push_back(row);
+        if (!wanted(mode)) continue;
+        for (auto& row : RunTwoProcesses(mode, plans, socket_buffer_bytes)) rows.push_back(row);
     }
     Print(rows, json);
     return 0;

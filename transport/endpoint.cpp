@@ -62,6 +62,10 @@ void Endpoint::Configure() {
     socket_.set(zmq::sockopt::sndhwm, ClampInt(config_.max_queue_messages));
     socket_.set(zmq::sockopt::rcvhwm, ClampInt(config_.max_queue_messages));
     socket_.set(zmq::sockopt::reconnect_ivl, config_.reconnect_interval_ms);
+    if (config_.socket_buffer_bytes > 0) {
+        socket_.set(zmq::sockopt::sndbuf, config_.socket_buffer_bytes);
+        socket_.set(zmq::sockopt::rcvbuf, config_.socket_buffer_bytes);
+    }
     const std::size_t max_frame =
         std::max(config_.limits.max_envelope_bytes, config_.limits.max_frame_bytes);
     socket_.set(zmq::sockopt::maxmsgsize, static_cast<int64_t>(max_frame));

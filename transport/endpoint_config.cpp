@@ -57,6 +57,9 @@ void EndpointConfig::Validate() const {
         Reject(*this, "reconnect_interval_ms", std::to_string(reconnect_interval_ms),
                "must be >= 0");
     }
+    if (socket_buffer_bytes < 0) {
+        Reject(*this, "socket_buffer_bytes", std::to_string(socket_buffer_bytes), "must be >= 0");
+    }
     if (curve) curve->Validate();
     limits.Validate();
     if (shm_threshold_bytes == 0) Reject(*this, "shm_threshold_bytes", "0", "must be positive");

@@ -44,10 +44,13 @@ struct EndpointConfig {
     std::size_t max_queue_bytes = 512u << 20;  ///< receive queue byte bound
     int send_timeout_ms = 1000;                ///< kReliable: longest a Send blocks (-1 = forever)
     int reconnect_interval_ms = 100;           ///< ZeroMQ reconnect interval to a lost peer
-    std::optional<CurveConfig> curve;          ///< CURVE security (tcp:// edges between robots)
-    DecodeLimits limits;                       ///< bounds on received frames
-    std::uint32_t robot_id = 0;                ///< this robot, stamped on control messages it sends
-    std::string node_name;                     ///< this actor, stamped on control messages it sends
+    /// Kernel send and receive buffer of tcp:// connections (ZMQ_SNDBUF/ZMQ_RCVBUF), bytes;
+    /// 0 keeps the OS default (Linux autotunes; an explicit size is capped by rmem/wmem_max).
+    int socket_buffer_bytes = 0;
+    std::optional<CurveConfig> curve;  ///< CURVE security (tcp:// edges between robots)
+    DecodeLimits limits;               ///< bounds on received frames
+    std::uint32_t robot_id = 0;        ///< this robot, stamped on control messages it sends
+    std::string node_name;             ///< this actor, stamped on control messages it sends
     /// An edge whose addresses are all ipc:// moves each binary frame of at least
     /// shm_threshold_bytes through POSIX shared memory: only a descriptor goes on the socket and
     /// the receiver's frame points into its read-only mapping. Receivers accept descriptors

@@ -1,7 +1,9 @@
 // Loop matcher: brute-force Scan Context over the (strided) pairs this robot owns, cloud
-// requests to lower robots, GICP verification, loop closures out.
+// requests to lower robots, GICP verification, PCM, loop closures (and withdrawals) out.
 #include "actors/loop_matcher_actor.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -27,14 +29,34 @@ void LoopMatcherConfig::Validate() const {
     Require(query_stride >= 1, "query_stride", query_stride, "must be >= 1");
     Require(min_intra_gap >= 1, "min_intra_gap", min_intra_gap, "must be >= 1");
     Require(request_retry.count() > 0, "request_retry", request_retry.count(), "must be > 0");
+    Require(max_rmse_m > 0, "max_rmse_m", max_rmse_m, "must be > 0");
+    pcm.Validate();
     registration.Validate();
+}
+
+v1::LoopClosure LoopWithdrawal(const slam::PoseId& a, const slam::PoseId& b) {
+    v1::LoopClosure out;
+    *out.mutable_pose_a() = ToProto(a);
+    *out.mutable_pose_b() = ToProto(b);
+    *out.mutable_t_a_b() = ToProto(Eigen::Isometry3d::Identity());
+    out.mutable_information()->set_kappa(0.0);
+    out.mutable_information()->set_tau(0.0);
+    return out;
+}
+
+std::optional<std::pair<slam::PoseId, slam::PoseId>> WithdrawnEnds(const v1::LoopClosure& loop) {
+    if (loop.information().kappa() != 0.0 || loop.information().tau() != 0.0) return std::nullopt;
+    const auto a = FromProto(loop.pose_a());
+    const auto b = FromProto(loop.pose_b());
+    if (!a || !b || *a == *b) return std::nullopt;
+    return std::make_pair(*a, *b);
 }
 
 LoopMatcherActor::LoopMatcherActor(zmq::context_t& context, TeamWiring wiring,
                                    LoopMatcherConfig config)
-    : NodeActor("loop_matcher", context, std::move(wiring)), config_(config) {
-    config_.Validate();
-}
+    : NodeActor("loop_matcher", context, std::move(wiring)),
+      config_(config),
+      pcm_((config.Validate(), config.pcm)) {}
 
 void LoopMatcherActor::OnStart() {
     loops_out_ = &OpenServer(Edge::kLoops);
@@ -50,7 +72,7 @@ void LoopMatcherActor::OnStart() {
     On(v1::Keyframe::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto keyframe = DecodeKeyframe(m);
         if (!keyframe || keyframe->robot != RobotId()) return false;
-        own_clouds_[keyframe->index] = keyframe->cloud;
+        OnOwnKeyframe(*keyframe);
         return true;
     });
     On(v1::ScanContextDescriptor::descriptor()->full_name(),
@@ -66,6 +88,19 @@ void LoopMatcherActor::OnStart() {
         return true;
     });
     Every(std::chrono::milliseconds(100), [this] { Tick(); });
+}
+
+void LoopMatcherActor::OnOwnKeyframe(const slam::Keyframe& keyframe) {
+    own_clouds_[keyframe.index] = keyframe.cloud;
+    if (own_odometry_.count(keyframe.index)) return;
+    KeyframeOdometry odometry{keyframe.T_odom_sensor, 0.0};
+    if (const auto before = own_odometry_.find(keyframe.index - 1); before != own_odometry_.end()) {
+        odometry.travelled_m =
+            before->second.travelled_m +
+            (keyframe.T_odom_sensor.translation() - before->second.T_odom.translation()).norm();
+    }
+    own_odometry_[keyframe.index] = odometry;
+    pcm_.SetOdometry({RobotId(), keyframe.index}, odometry);
 }
 
 bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
@@ -132,6 +167,11 @@ bool LoopMatcherActor::OnCloudRequest(const transport::Message& m) {
     reply.set_request_id(request->request_id());
     slam::PointCloudPtr cloud;
     if (id->robot == RobotId() && own_clouds_.count(id->index)) cloud = own_clouds_.at(id->index);
+    if (const auto it = own_odometry_.find(id->index);
+        id->robot == RobotId() && it != own_odometry_.end()) {
+        *reply.mutable_t_odom_base() = ToProto(it->second.T_odom);  // for the requester's PCM
+        reply.set_travelled_m(it->second.travelled_m);
+    }
     const auto message = EncodeCloudReply(reply, cloud);
     if (clouds_server_->SendTo(m.peer, message) == transport::SendStatus::kSent) {
         CountPeerBytes(message.ByteSize());
@@ -147,6 +187,10 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
     if (it == pending_.end()) return true;  // a duplicate reply to a retried request
     const Pending p = it->second;
     pending_.erase(it);
+    const auto T_odom = reply.has_t_odom_base() ? FromProto(reply.t_odom_base()) : std::nullopt;
+    if (T_odom && std::isfinite(reply.travelled_m())) {
+        pcm_.SetOdometry(p.match, {*T_odom, reply.travelled_m()});
+    }
     Verify(p.query, p.match, p.yaw_rad, **cloud);
     return true;
 }
@@ -155,10 +199,11 @@ void LoopMatcherActor::Verify(const slam::PoseId& query, const slam::PoseId& mat
                               const slam::PointCloud& match_cloud) {
     const auto result = slam::RegisterScans(*own_clouds_.at(query.index), match_cloud,
                                             slam::YawGuess(yaw_rad), config_.registration);
-    if (!result.accepted()) {
+    if (!result.accepted() || result.inlier_rmse_m > config_.max_rmse_m) {
         ++rejected_;
         return;
     }
+    ++verified_;
     slam::LoopClosure loop;
     loop.a = match;  // the lower robot's (or older own) keyframe is the tail
     loop.b = query;
@@ -166,10 +211,43 @@ void LoopMatcherActor::Verify(const slam::PoseId& query, const slam::PoseId& mat
     loop.kappa = result.kappa;
     loop.tau = result.tau;
     loop.fitness = result.inlier_rmse_m * result.inlier_rmse_m;
-    auto proto = ToProto(loop);
-    *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-    Send(*loops_out_, transport::Pack(proto), loop.inter_robot());
-    ++loops_;
+    if (!config_.reject_outliers) {
+        sent_[{loop.a, loop.b}] = loop;
+        SendLoop(ToProto(loop), loop.inter_robot());
+        return;
+    }
+    // A peer that sent no odometry with its cloud cannot be checked: the loop is not used.
+    if (pcm_.Add(loop, result.information)) pcm_dirty_ = true;
+}
+
+void LoopMatcherActor::SendLoop(v1::LoopClosure proto, bool inter_robot) {
+    // The verdict version: increasing across restarts (wall clock), so the newest verdict wins.
+    const auto now = std::chrono::system_clock::now().time_since_epoch();
+    last_version_ = std::max<std::int64_t>(
+        last_version_ + 1, std::chrono::duration_cast<std::chrono::nanoseconds>(now).count());
+    *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), last_version_);
+    Send(*loops_out_, transport::Pack(proto), inter_robot);
+    loops_ = static_cast<int>(sent_.size());
+}
+
+void LoopMatcherActor::Reconcile() {
+    pcm_dirty_ = false;
+    std::map<std::pair<slam::PoseId, slam::PoseId>, slam::LoopClosure> consistent;
+    for (const auto& loop : pcm_.Consistent()) consistent[{loop.a, loop.b}] = loop;
+    for (auto it = sent_.begin(); it != sent_.end();) {
+        if (consistent.count(it->first)) {
+            ++it;
+            continue;
+        }
+        const slam::LoopClosure gone = it->second;
+        it = sent_.erase(it);
+        ++withdrawn_;
+        SendLoop(LoopWithdrawal(gone.a, gone.b), gone.inter_robot());
+    }
+    for (const auto& [ends, loop] : consistent) {
+        if (!sent_.emplace(ends, loop).second) continue;
+        SendLoop(ToProto(loop), loop.inter_robot());
+    }
 }
 
 void LoopMatcherActor::Tick() {
@@ -182,6 +260,7 @@ void LoopMatcherActor::Tick() {
         p.sent = now;
         RequestCloud(id, p);  // the peer was silent or not there yet
     }
+    if (pcm_dirty_) Reconcile();  // once per tick: a burst of verified loops, one clique search
     bool done = pending_.empty() && deferred_.empty();
     for (int r : Wiring().robots) done = done && (r > RobotId() || ended_streams_.count(r));
     if (!done) return;

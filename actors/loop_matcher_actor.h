@@ -2,17 +2,23 @@
 // ones or lower robots' (each pair checked once, by the higher robot, when the later of the two
 // descriptors arrives: the loop set does not depend on arrival order); the lower robot's cloud
 // is requested only for candidates; GICP seeded by the Scan Context yaw verifies; verified loops
-// go to both robots' solvers.
+// pass pairwise consistency maximisation (re-evaluated on each new loop: a loop that drops out of
+// the consistent set is withdrawn) and go to both robots' solvers.
 #pragma once
 
 #include <atomic>
 #include <chrono>
 #include <map>
+#include <optional>
 #include <set>
+#include <utility>
 #include <vector>
 
+#include "actors/loop_matcher_actor_pcm.h"
 #include "actors/node_actor.h"
+#include "certislam/v1/loop_closure.pb.h"
 #include "slam/loop_closure.h"
+#include "slam/pcm.h"
 #include "slam/registration.h"
 #include "slam/scan_context.h"
 
@@ -27,6 +33,9 @@ struct LoopMatcherConfig {
     int query_stride = 3;          ///< only keyframes with index % stride == 0 take part, >= 1
     int min_intra_gap = 40;        ///< keyframes between an intra-robot pair, >= 1
     bool intra_robot = true;       ///< also close loops within the robot
+    double max_rmse_m = 0.3;       ///< registration inlier RMSE accepting a loop, > 0
+    bool reject_outliers = true;   ///< PCM over the verified loops before they are sent
+    slam::PcmConfig pcm;           ///< consistency test and clique search
     slam::RegistrationConfig registration;          ///< verification
     std::chrono::milliseconds request_retry{1000};  ///< cloud requests re-sent after this, > 0
 
@@ -34,16 +43,28 @@ struct LoopMatcherConfig {
     void Validate() const;
 };
 
+/// A withdrawal of the loop (a, b) on the wire: a LoopClosure with both ids, identity T_a_b and
+/// zero weights (kappa = tau = 0, which no accepted loop has). Like an accepted loop sent by a
+/// matcher, its header's stamp_ns is the matcher's verdict version (increasing; a solver's
+/// re-broadcast of a loop carries 0): a receiver applies only the newest verdict per loop.
+v1::LoopClosure LoopWithdrawal(const slam::PoseId& a, const slam::PoseId& b);
+/// The ends (a, b) of a withdrawal message; nullopt when `loop` is not one.
+std::optional<std::pair<slam::PoseId, slam::PoseId>> WithdrawnEnds(const v1::LoopClosure& loop);
+
 /// Scan Context + registration loop closures, inter-robot cloud exchange on request.
 class LoopMatcherActor final : public NodeActor {
   public:
     LoopMatcherActor(zmq::context_t& context, TeamWiring wiring, LoopMatcherConfig config);
     ~LoopMatcherActor() override { Stop(); }
 
-    /// Loops published so far.
+    /// Loops accepted now (sent and not withdrawn).
     int LoopsFound() const { return loops_.load(); }
     /// Candidates registration rejected so far.
     int Rejected() const { return rejected_.load(); }
+    /// Loops registration verified so far (PCM's input).
+    int Verified() const { return verified_.load(); }
+    /// Withdrawals sent so far (loops that dropped out of the consistent set).
+    int Withdrawn() const { return withdrawn_.load(); }
     /// True once the end-of-loops marker went out.
     bool Ended() const { return ended_.load(); }
 
@@ -66,6 +87,9 @@ class LoopMatcherActor final : public NodeActor {
     void Verify(const slam::PoseId& query, const slam::PoseId& match, double yaw_rad,
                 const slam::PointCloud& match_cloud);
     void RequestCloud(std::uint64_t id, const Pending& p);
+    void OnOwnKeyframe(const slam::Keyframe& keyframe);
+    void SendLoop(v1::LoopClosure proto, bool inter_robot);
+    void Reconcile();
     void Tick();
 
     LoopMatcherConfig config_;
@@ -78,8 +102,15 @@ class LoopMatcherActor final : public NodeActor {
     std::vector<Pending> deferred_;  ///< own clouds not yet arrived (descriptor came first)
     std::set<int> ended_streams_;    ///< robots whose stream ended
     std::uint64_t next_request_ = 0;
+    std::map<int, KeyframeOdometry> own_odometry_;  ///< own keyframe -> odometry
+    IncrementalPcm pcm_;
+    bool pcm_dirty_ = false;  ///< a loop was verified since the last Reconcile()
+    std::map<std::pair<slam::PoseId, slam::PoseId>, slam::LoopClosure> sent_;  ///< accepted now
+    std::int64_t last_version_ = 0;
     std::atomic<int> loops_{0};
     std::atomic<int> rejected_{0};
+    std::atomic<int> verified_{0};
+    std::atomic<int> withdrawn_{0};
     std::atomic<bool> ended_{false};
 };
 

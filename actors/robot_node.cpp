@@ -9,6 +9,7 @@ void RobotNodeConfig::Validate() const {
     matcher.Validate();
     solver.Validate();
     certifier.Validate();
+    mapper.Validate();
     if (quiet.count() < 0) throw std::invalid_argument("RobotNodeConfig.quiet: must be >= 0");
 }
 
@@ -20,12 +21,18 @@ RobotNode::RobotNode(zmq::context_t& context, const TeamWiring& wiring, Keyframe
     solver_ = std::make_unique<SolverActor>(context, wiring, config_.solver);
     matcher_ = std::make_unique<LoopMatcherActor>(context, wiring, config_.matcher);
     descriptor_ = std::make_unique<DescriptorActor>(context, wiring, config_.scan_context);
+    if (config_.mapping && HasEdgeEverywhere(wiring, Edge::kMap)) {
+        mapper_ = std::make_unique<MapperActor>(context, wiring, config_.mapper);
+        // One more local keyframe subscriber for the ingest to wait for.
+        if (config_.ingest.local_subscribers > 0) ++config_.ingest.local_subscribers;
+    }
     ingest_ = std::make_unique<IngestActor>(context, wiring, std::move(source), config_.ingest);
 }
 
 RobotNode::~RobotNode() { Stop(); }
 
 void RobotNode::Start() {
+    if (mapper_) mapper_->Start();
     certifier_->Start();
     solver_->Start();
     matcher_->Start();
@@ -39,6 +46,7 @@ void RobotNode::Stop() {
     matcher_->Stop();
     solver_->Stop();
     certifier_->Stop();
+    if (mapper_) mapper_->Stop();
 }
 
 bool RobotNode::Done() const {
@@ -50,7 +58,8 @@ bool RobotNode::Done() const {
 
 std::uint64_t RobotNode::BytesSentToPeers() const {
     return descriptor_->BytesSentToPeers() + matcher_->BytesSentToPeers() +
-           solver_->BytesSentToPeers() + certifier_->BytesSentToPeers();
+           solver_->BytesSentToPeers() + certifier_->BytesSentToPeers() +
+           (mapper_ ? mapper_->BytesSentToPeers() : 0);
 }
 
 }  // namespace certislam::actors

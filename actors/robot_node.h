@@ -1,5 +1,6 @@
-// One robot's actor graph: ingest -> descriptor -> loop matcher -> RBCD solver -> certifier
-// (the TSDF mapper is not wired yet), in one ZeroMQ context, over the team's wiring.
+// One robot's actor graph: ingest -> descriptor -> loop matcher -> RBCD solver -> certifier, and
+// the TSDF mapper (keyframes + the solver's trajectory; submaps to and from peers) when the
+// team's wiring has map addresses, in one ZeroMQ context, over the team's wiring.
 #pragma once
 
 #include <chrono>
@@ -9,17 +10,20 @@
 #include "actors/descriptor_actor.h"
 #include "actors/ingest_actor.h"
 #include "actors/loop_matcher_actor.h"
+#include "actors/mapper_actor.h"
 #include "actors/solver_actor.h"
 
 namespace certislam::actors {
 
 /// Settings of every actor of a robot.
 struct RobotNodeConfig {
-    IngestConfig ingest;                    ///< pacing
-    slam::ScanContextConfig scan_context;   ///< descriptor
-    LoopMatcherConfig matcher;              ///< loop closures
-    SolverActorConfig solver;               ///< RBCD
-    CertifierConfig certifier;              ///< certificate
+    IngestConfig ingest;                   ///< pacing
+    slam::ScanContextConfig scan_context;  ///< descriptor
+    LoopMatcherConfig matcher;             ///< loop closures
+    SolverActorConfig solver;              ///< RBCD
+    CertifierConfig certifier;             ///< certificate
+    MapperConfig mapper;                   ///< TSDF submaps
+    bool mapping = true;  ///< run the mapper (when the wiring has map addresses for every robot)
     std::chrono::milliseconds quiet{1500};  ///< done: certified and no change for this long
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
@@ -48,6 +52,10 @@ class RobotNode {
     std::uint64_t BytesSentToPeers() const;
     /// Loops this robot's matcher found.
     int LoopsFound() const { return matcher_->LoopsFound(); }
+    /// Loops this robot's matcher withdrew (they dropped out of its consistent set).
+    int LoopsWithdrawn() const { return matcher_->Withdrawn(); }
+    /// The TSDF mapper; nullptr when the node runs none.
+    MapperActor* Mapper() { return mapper_.get(); }
     /// The robot's id.
     int robot() const { return robot_; }
 
@@ -59,6 +67,7 @@ class RobotNode {
     std::unique_ptr<LoopMatcherActor> matcher_;
     std::unique_ptr<DescriptorActor> descriptor_;
     std::unique_ptr<IngestActor> ingest_;
+    std::unique_ptr<MapperActor> mapper_;
 };
 
 }  // namespace certislam::actors

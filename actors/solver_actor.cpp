@@ -6,6 +6,7 @@
 #include "actors/codec.h"
 #include "actors/ingest_actor.h"
 #include "actors/loop_matcher_actor.h"
+#include "actors/mapper_actor.h"
 #include "certislam/v1/control.pb.h"
 
 namespace certislam::actors {
@@ -91,10 +92,41 @@ void SolverActor::Subscribe() {
     });
 }
 
+bool SolverActor::NewVerdict(const std::pair<slam::PoseId, slam::PoseId>& ends,
+                             std::int64_t version, bool accepted) {
+    const auto it = verdicts_.find(ends);
+    if (version <= 0) {  // a re-broadcast: adds a loop no matcher verdict spoke of yet
+        if (it != verdicts_.end()) return it->second.second && accepted;
+        verdicts_[ends] = {0, accepted};
+        return true;
+    }
+    if (it != verdicts_.end() && it->second.first >= version) return false;  // stale
+    verdicts_[ends] = {version, accepted};
+    return true;
+}
+
+void SolverActor::Withdraw(const std::pair<slam::PoseId, slam::PoseId>& ends) {
+    if (state_.RemoveLoop(ends.first, ends.second)) Changed();
+    if (team_loop_ends_.erase(ends) > 0) {
+        std::erase_if(team_loops_, [&](const slam::LoopClosure& l) {
+            return l.a == ends.first && l.b == ends.second;
+        });
+    }
+}
+
 bool SolverActor::OnLoop(const transport::Message& m, bool replayed) {
     const auto proto = transport::Unpack<v1::LoopClosure>(m);
-    const auto loop = proto ? FromProto(*proto) : std::nullopt;
+    if (!proto) return false;
+    const std::int64_t version = proto->header().stamp_ns();  // the matcher's verdict version
+    if (const auto ends = WithdrawnEnds(*proto)) {
+        if (!NewVerdict(*ends, version, false)) return true;
+        Withdraw(*ends);
+        if (log_ && !replayed) log_->Append(m);
+        return true;
+    }
+    const auto loop = FromProto(*proto);
     if (!loop) return false;
+    if (!NewVerdict({loop->a, loop->b}, version, true)) return true;
     if (state_.AddLoop(*loop)) {
         Changed();
         if (log_ && !replayed) log_->Append(m);
@@ -196,6 +228,13 @@ void SolverActor::SendBundle() {
     auto block = ToProto(state_.FullBlock(steps_));
     *block.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     Send(*bundle_out_, transport::Pack(block), false);
+    // After the bundle: the rounded trajectory for the mapper (the certifier ignores it).
+    int anchor = RobotId();
+    const auto poses = state_.Trajectory(ComponentAnchor(RobotId(), team_loops_), &anchor);
+    const bool certified = report_ && report_->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
+    auto trajectory = TrajectoryToProto(RobotId(), poses, certified, steps_);
+    *trajectory.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    Send(*bundle_out_, transport::Pack(trajectory), false);
     bundle_dirty_ = false;
     last_bundle_ = std::chrono::steady_clock::now();
 }

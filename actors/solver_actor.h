@@ -66,6 +66,9 @@ class SolverActor final : public NodeActor {
     void Subscribe();
     bool OnPublicPoses(const transport::Message& m);
     bool OnLoop(const transport::Message& m, bool replayed);
+    bool NewVerdict(const std::pair<slam::PoseId, slam::PoseId>& ends, std::int64_t version,
+                    bool accepted);
+    void Withdraw(const std::pair<slam::PoseId, slam::PoseId>& ends);
     void Tick();
     void Heartbeat();
     void SendBundle();
@@ -82,6 +85,9 @@ class SolverActor final : public NodeActor {
     std::set<int> loops_ended_;                  ///< matchers that said end of loops
     std::vector<slam::LoopClosure> team_loops_;  ///< every inter-robot loop heard (team frame)
     std::set<std::pair<slam::PoseId, slam::PoseId>> team_loop_ends_;
+    /// Loop ends -> (newest matcher verdict version, accepted): withdrawals win over older
+    /// accepts and over solvers' re-broadcasts (version 0).
+    std::map<std::pair<slam::PoseId, slam::PoseId>, std::pair<std::int64_t, bool>> verdicts_;
     bool keyframes_ended_ = false;
     bool work_ = true;  ///< something changed since the last step
     bool local_ok_ = false;

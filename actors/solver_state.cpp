@@ -255,6 +255,16 @@ bool SolverState::AddLoop(const slam::LoopClosure& loop) {
     return true;
 }
 
+bool SolverState::RemoveLoop(const slam::PoseId& a, const slam::PoseId& b) {
+    Impl& m = *impl_;
+    const auto it = std::find_if(m.loops.begin(), m.loops.end(),
+                                 [&](const slam::LoopClosure& l) { return l.a == a && l.b == b; });
+    if (it == m.loops.end()) return false;
+    m.dirty = m.dirty || m.Active(*it);
+    m.loops.erase(it);
+    return true;
+}
+
 void SolverState::SetNeighbourPoses(const PoseBlocks& poses) {
     Impl& m = *impl_;
     for (size_t k = 0; k < poses.ids.size(); ++k) {

@@ -58,6 +58,9 @@ class SolverState {
     /// Adds a loop closure touching this robot (false when it does not, or is already known).
     /// Inter-robot loops to poses not yet known are kept until both ends exist.
     bool AddLoop(const slam::LoopClosure& loop);
+    /// Removes the loop with ends (a, b), the matcher having withdrawn it (false when unknown);
+    /// the graph is rebuilt at the next Step.
+    bool RemoveLoop(const slam::PoseId& a, const slam::PoseId& b);
     /// Stores a neighbour's latest public poses (ids of other robots only; newer replace older).
     void SetNeighbourPoses(const PoseBlocks& poses);
     /// Replaces the own block with a lifted solution of rank >= r (the saddle escape's output):

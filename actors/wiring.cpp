@@ -42,6 +42,8 @@ const char* EdgeName(Edge edge) {
             return "bundle";
         case Edge::kCertify:
             return "certify";
+        case Edge::kMap:
+            return "map";
     }
     return "unknown";
 }
@@ -66,6 +68,14 @@ void TeamWiring::Validate() const {
     }
 }
 
+bool HasEdgeEverywhere(const TeamWiring& wiring, Edge edge) {
+    return std::all_of(wiring.robots.begin(), wiring.robots.end(), [&](int r) {
+        const auto it = wiring.addresses.find(r);
+        return it != wiring.addresses.end() && it->second.count(edge) &&
+               !it->second.at(edge).empty();
+    });
+}
+
 TeamWiring InprocWiring(int robot, const std::vector<int>& robots) {
     TeamWiring wiring;
     wiring.robot = robot;
@@ -74,6 +84,7 @@ TeamWiring InprocWiring(int robot, const std::vector<int>& robots) {
         for (Edge e : kAllEdges) {
             wiring.addresses[r][e] = "inproc://certislam/r" + std::to_string(r) + "/" + EdgeName(e);
         }
+        wiring.addresses[r][Edge::kMap] = "inproc://certislam/r" + std::to_string(r) + "/map";
     }
     return wiring;
 }

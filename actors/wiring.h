@@ -13,7 +13,8 @@
 namespace certislam::actors {
 
 /// The logical edges of a robot node (each is one publisher's stream, or the cloud server).
-enum class Edge { kKeyframes, kDescriptors, kLoops, kClouds, kPoses, kBundle, kCertify };
+/// kMap (the TSDF mapper's submaps) is optional: a team without its addresses runs no mapper.
+enum class Edge { kKeyframes, kDescriptors, kLoops, kClouds, kPoses, kBundle, kCertify, kMap };
 
 /// The edge's name in addresses and logs ("keyframes", ...).
 const char* EdgeName(Edge edge);
@@ -31,6 +32,9 @@ struct TeamWiring {
     /// with CURVE every robot has a valid public key.
     void Validate() const;
 };
+
+/// True when every robot of the team has an address for `edge`.
+bool HasEdgeEverywhere(const TeamWiring& wiring, Edge edge);
 
 /// Addresses of an all-in-one-process team: inproc://certislam/r<k>/<edge>.
 TeamWiring InprocWiring(int robot, const std::vector<int>& robots);

@@ -1,0 +1,243 @@
+// TSDF mapper: keyframes in -> submaps; solver trajectories in -> re-anchoring; own submaps out
+// to peers (bytes when their voxels changed, anchor pose only when they just moved); peers'
+// submaps in -> the same map.
+#include "actors/mapper_actor.h"
+
+#include <future>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+#include "actors/codec.h"
+#include "certislam/v1/map.pb.h"
+
+namespace certislam::actors {
+namespace {
+
+constexpr double kMovedTranslation_m = 1e-4;  // anchor changes below these are not sent
+constexpr double kMovedRotation_rad = 1e-5;
+constexpr auto kMeshWait = std::chrono::seconds(120);
+
+bool Moved(const Eigen::Isometry3d& before, const Eigen::Isometry3d& after) {
+    const Eigen::Isometry3d d = before.inverse() * after;
+    return d.translation().norm() > kMovedTranslation_m ||
+           Eigen::AngleAxisd(d.linear()).angle() > kMovedRotation_rad;
+}
+
+}  // namespace
+
+void MapperConfig::Validate() const {
+    map.Validate();
+    if (publish_period.count() <= 0) {
+        throw std::invalid_argument("MapperConfig.publish_period = " +
+                                    std::to_string(publish_period.count()) + " ms: must be > 0");
+    }
+}
+
+v1::TrajectoryUpdate TrajectoryToProto(int robot, const std::vector<Eigen::Isometry3d>& poses,
+                                       bool certified, std::uint64_t iteration) {
+    v1::TrajectoryUpdate out;
+    out.set_iteration(iteration);
+    out.set_certified(certified);
+    for (size_t k = 0; k < poses.size(); ++k) {
+        *out.add_pose_ids() = ToProto(slam::PoseId{robot, static_cast<int>(k)});
+        *out.add_t_world_base() = ToProto(poses[k]);
+    }
+    return out;
+}
+
+std::optional<std::map<slam::PoseId, Eigen::Isometry3d>> TrajectoryFromProto(
+    const v1::TrajectoryUpdate& update) {
+    if (update.pose_ids_size() != update.t_world_base_size()) return std::nullopt;
+    std::map<slam::PoseId, Eigen::Isometry3d> out;
+    for (int k = 0; k < update.pose_ids_size(); ++k) {
+        const auto id = FromProto(update.pose_ids(k));
+        const auto T = FromProto(update.t_world_base(k));
+        if (!id || !T) return std::nullopt;
+        out[*id] = *T;
+    }
+    return out;
+}
+
+MapperActor::MapperActor(zmq::context_t& context, TeamWiring wiring, MapperConfig config)
+    : NodeActor("mapper", context, std::move(wiring)),
+      config_(config),
+      map_((config.Validate(), RobotId()), config.map) {}
+
+void MapperActor::OnStart() {
+    map_out_ = &OpenServer(Edge::kMap);
+    OpenClient(Edge::kKeyframes, RobotId());
+    OpenClient(Edge::kBundle, RobotId());  // the solver's trajectory closes each bundle
+    for (int r : Wiring().robots) {
+        if (r != RobotId()) OpenClient(Edge::kMap, r);
+    }
+    On(v1::Keyframe::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnKeyframe(m); });
+    On(v1::TrajectoryUpdate::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnTrajectory(m); });
+    On(v1::MapUpdate::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnMapUpdate(m); });
+    Every(config_.publish_period, [this] { Publish(); });
+}
+
+MapperStats MapperActor::Stats() const {
+    std::lock_guard lock(stats_mutex_);
+    return stats_;
+}
+
+std::optional<Eigen::Isometry3d> MapperActor::Estimate(int index) const {
+    const auto odom = odometry_.find(index);
+    if (odom == odometry_.end()) return std::nullopt;
+    if (const auto it = solved_.find(index); it != solved_.end()) return it->second;
+    // Not solved yet: the latest solved keyframe before it, then odometry from there.
+    auto before = solved_.lower_bound(index);
+    if (before == solved_.begin()) return odom->second;  // nothing solved: the odometry frame
+    --before;
+    return before->second * odometry_.at(before->first).inverse() * odom->second;
+}
+
+bool MapperActor::OnKeyframe(const transport::Message& m) {
+    const auto keyframe = DecodeKeyframe(m);
+    if (!keyframe || keyframe->robot != RobotId()) return false;
+    if (odometry_.count(keyframe->index)) return true;  // a republished keyframe
+    odometry_[keyframe->index] = keyframe->T_odom_sensor;
+    const auto result = map_.Insert(keyframe->index, *Estimate(keyframe->index), *keyframe->cloud);
+    if (result.status == slam::TsdfMapInsertResult::Status::kIntegrated) {
+        dirty_.insert(map_.submaps()[result.submap].id);
+    }
+    UpdateStats();
+    std::lock_guard lock(stats_mutex_);
+    ++stats_.integrated;
+    return true;
+}
+
+bool MapperActor::OnTrajectory(const transport::Message& m) {
+    const auto proto = transport::Unpack<v1::TrajectoryUpdate>(m);
+    const auto poses = proto ? TrajectoryFromProto(*proto) : std::nullopt;
+    if (!poses || int(proto->header().robot_id()) != RobotId()) return false;
+    for (const auto& [id, T] : *poses) {
+        if (id.robot == RobotId()) solved_[id.index] = T;
+    }
+    std::map<slam::SubmapId, Eigen::Isometry3d> before;
+    for (const auto& s : map_.submaps()) before[s.id] = s.T_world_submap;
+    map_.Reanchor([&](const slam::PoseId& id) -> std::optional<Eigen::Isometry3d> {
+        if (id.robot != RobotId()) return std::nullopt;
+        const auto it = solved_.find(id.index);
+        return it == solved_.end() ? std::nullopt : std::optional(it->second);
+    });
+    int moved = 0;
+    for (const auto& s : map_.submaps()) {
+        if (s.id.robot == RobotId() && Moved(before.at(s.id), s.T_world_submap)) {
+            moved_.insert(s.id);
+            ++moved;
+        }
+    }
+    std::lock_guard lock(stats_mutex_);
+    ++stats_.trajectory_updates;
+    stats_.submaps_moved += moved;
+    return true;
+}
+
+bool MapperActor::OnMapUpdate(const transport::Message& m) {
+    const auto proto = transport::Unpack<v1::MapUpdate>(m);
+    if (!proto) return false;
+    const int sender = static_cast<int>(proto->header().robot_id());
+    const auto anchor = FromProto(proto->anchor_pose_id());
+    const auto T = FromProto(proto->t_world_anchor());
+    if (sender == RobotId() || !anchor || !T || anchor->robot != sender) return false;
+    const slam::SubmapId id{sender, static_cast<int>(proto->submap_id())};
+    if (proto->byte_length() == 0) {         // moved only
+        if (!peers_.count(id)) return true;  // its bytes have not arrived yet: they will
+        map_.Reanchor([&](const slam::PoseId& p) -> std::optional<Eigen::Isometry3d> {
+            return p == *anchor ? std::optional(*T) : std::nullopt;
+        });
+        std::lock_guard lock(stats_mutex_);
+        ++stats_.peer_moves;
+        return true;
+    }
+    const auto index = static_cast<size_t>(proto->frame_index());
+    if (proto->kind() != v1::MAP_PAYLOAD_KIND_TSDF_BLOCKS || index >= m.frames.size() ||
+        m.frames[index].size() != proto->byte_length()) {
+        return false;
+    }
+    const auto& frame = m.frames[index];
+    std::string error;
+    auto submap = slam::DeserializeSubmap(
+        std::string_view(reinterpret_cast<const char*>(frame.data()), frame.size()), &error);
+    if (!submap || !(submap->id == id) || !(submap->anchor == *anchor)) return false;
+    submap->T_world_submap = *T;
+    map_.AddSubmap(std::move(*submap));
+    peers_.insert(id);
+    UpdateStats();
+    return true;
+}
+
+void MapperActor::Publish() {
+    if (!config_.share) {
+        dirty_.clear();
+        moved_.clear();
+        return;
+    }
+    // A peer that subscribed since the last tick (late, or restarted) gets every own submap.
+    const std::size_t subscribers = map_out_->subscribers();
+    if (subscribers > seen_subscribers_) {
+        for (const auto& s : map_.submaps()) {
+            if (s.id.robot == RobotId()) dirty_.insert(s.id);
+        }
+        seen_subscribers_ = subscribers;
+    }
+    if (subscribers == 0) return;  // nobody listens yet: the changes wait
+    std::uint64_t bytes = 0;
+    for (const auto& s : map_.submaps()) {
+        const bool dirty = dirty_.count(s.id) > 0, moved = moved_.count(s.id) > 0;
+        if (s.id.robot != RobotId() || (!dirty && !moved)) continue;
+        v1::MapUpdate update;
+        *update.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+        update.set_submap_id(static_cast<std::uint64_t>(s.id.index));
+        *update.mutable_anchor_pose_id() = ToProto(s.anchor);
+        *update.mutable_t_world_anchor() = ToProto(s.T_world_submap);
+        update.set_voxel_size_m(static_cast<float>(s.volume.config().voxel_size_m));
+        std::vector<transport::SharedBuffer> frames;
+        if (dirty) {  // the submap stream compresses its voxels itself (OpenVDB + blosc)
+            const std::string payload = slam::SerializeSubmap(s);
+            update.set_kind(v1::MAP_PAYLOAD_KIND_TSDF_BLOCKS);
+            update.set_compression(v1::MAP_COMPRESSION_NONE);
+            update.set_frame_index(0);
+            update.set_byte_length(payload.size());
+            update.set_uncompressed_byte_length(payload.size());
+            frames.push_back(transport::SharedBuffer::Copy(payload.data(), payload.size()));
+            bytes += payload.size();
+        }
+        Send(*map_out_, transport::Pack(update, std::move(frames)), true);
+    }
+    dirty_.clear();
+    moved_.clear();
+    std::lock_guard lock(stats_mutex_);
+    stats_.submap_bytes_sent += bytes;
+}
+
+void MapperActor::UpdateStats() {
+    int own = 0;
+    for (const auto& s : map_.submaps()) own += s.id.robot == RobotId() ? 1 : 0;
+    std::lock_guard lock(stats_mutex_);
+    stats_.own_submaps = own;
+    stats_.peer_submaps = static_cast<int>(peers_.size());
+}
+
+slam::TriangleMesh MapperActor::MakeMesh(double voxel_m) const {
+    slam::TsdfConfig config = config_.map.tsdf;
+    config.voxel_size_m = voxel_m;
+    return map_.Fuse(config).ExtractMesh();
+}
+
+slam::TriangleMesh MapperActor::FusedMesh(double voxel_m) {
+    if (!Running()) return MakeMesh(voxel_m);
+    auto done = std::make_shared<std::promise<slam::TriangleMesh>>();
+    auto result = done->get_future();
+    Post([this, done, voxel_m] { done->set_value(MakeMesh(voxel_m)); });
+    if (result.wait_for(kMeshWait) != std::future_status::ready) return {};
+    return result.get();
+}
+
+}  // namespace certislam::actors

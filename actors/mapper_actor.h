@@ -1,0 +1,89 @@
+// TSDF mapper actor: integrates this robot's keyframes into submaps anchored to keyframes, moves
+// them (no re-integration) when the solver's trajectory changes, sends its submaps to the peers
+// as compressed bytes (a moved submap as its new anchor pose only) and fuses the peers' submaps
+// into the same map, so every robot can mesh the team's map in the common frame.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <atomic>
+#include <chrono>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <vector>
+
+#include "actors/node_actor.h"
+#include "certislam/v1/rbcd.pb.h"
+#include "slam/mesh.h"
+#include "slam/submap.h"
+
+namespace certislam::actors {
+
+/// Settings of the mapper.
+struct MapperConfig {
+    slam::TsdfMapConfig map;                        ///< submaps and their TSDF volumes
+    std::chrono::milliseconds publish_period{500};  ///< changed submaps out this often, > 0
+    bool share = true;                              ///< send own submaps to the peers
+
+    /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
+    void Validate() const;
+};
+
+/// Poses of one robot's keyframes in its solver's (anchor robot's) frame, on the wire.
+v1::TrajectoryUpdate TrajectoryToProto(int robot, const std::vector<Eigen::Isometry3d>& poses,
+                                       bool certified, std::uint64_t iteration);
+/// Pose id -> pose of a TrajectoryUpdate; nullopt when the lists disagree or a pose is malformed.
+std::optional<std::map<slam::PoseId, Eigen::Isometry3d>> TrajectoryFromProto(
+    const v1::TrajectoryUpdate& update);
+
+/// What the mapper has done so far (a copy; thread-safe to take).
+struct MapperStats {
+    int integrated = 0;                   ///< own keyframes fused
+    int own_submaps = 0;                  ///< own submaps
+    int peer_submaps = 0;                 ///< submaps received from peers (distinct ids)
+    int trajectory_updates = 0;           ///< solver trajectories applied
+    int submaps_moved = 0;                ///< re-anchorings of own submaps (sum over updates)
+    int peer_moves = 0;                   ///< peers' pose-only updates applied
+    std::uint64_t submap_bytes_sent = 0;  ///< compressed submap payloads sent to peers
+};
+
+/// One robot's TSDF mapper.
+class MapperActor final : public NodeActor {
+  public:
+    MapperActor(zmq::context_t& context, TeamWiring wiring, MapperConfig config);
+    ~MapperActor() override { Stop(); }
+
+    /// The counters now (thread-safe).
+    MapperStats Stats() const;
+    /// Every submap (own and peers') fused into one volume of voxel `voxel_m` in the common frame
+    /// and meshed. Runs on the actor's thread while it runs (waits for it), directly otherwise.
+    slam::TriangleMesh FusedMesh(double voxel_m);
+
+  protected:
+    void OnStart() override;
+    void OnStop() override { CloseEndpoints(); }
+
+  private:
+    bool OnKeyframe(const transport::Message& m);
+    bool OnTrajectory(const transport::Message& m);
+    bool OnMapUpdate(const transport::Message& m);
+    std::optional<Eigen::Isometry3d> Estimate(int index) const;
+    void Publish();
+    void UpdateStats();
+    slam::TriangleMesh MakeMesh(double voxel_m) const;
+
+    MapperConfig config_;
+    slam::TsdfMap map_;
+    transport::Endpoint* map_out_ = nullptr;
+    std::map<int, Eigen::Isometry3d> odometry_;  ///< own keyframe -> T_odom_sensor
+    std::map<int, Eigen::Isometry3d> solved_;    ///< own keyframe -> latest solver pose
+    std::set<slam::SubmapId> dirty_;             ///< own submaps whose voxels changed
+    std::set<slam::SubmapId> moved_;             ///< own submaps whose anchor pose changed
+    std::set<slam::SubmapId> peers_;             ///< peers' submaps received
+    std::size_t seen_subscribers_ = 0;           ///< map subscribers at the last publish
+    mutable std::mutex stats_mutex_;
+    MapperStats stats_;
+};
+
+}  // namespace certislam::actors

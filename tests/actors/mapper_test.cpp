@@ -1,0 +1,127 @@
+// The TSDF mapper actor over real inproc sockets: two robots' mappers, the test playing each
+// robot's ingest (keyframes) and solver (trajectory updates on the bundle stream). Robot 1's
+// submap (a wall only robot 1 saw) reaches robot 0 as compressed bytes and is fused into robot
+// 0's map; a trajectory update that moves robot 1's keyframe moves that wall in robot 0's mesh
+// (a pose-only update, no re-integration).
+#include <gtest/gtest.h>
+
+#include <thread>
+
+#include "actors/codec.h"
+#include "actors/mapper_actor.h"
+#include "certislam/v1/map.pb.h"
+
+namespace certislam::actors {
+namespace {
+
+constexpr double kWallX_m = 8.0;          // robot 1's wall: the plane x = 8 in its sensor frame
+constexpr double kWallY_m = 8.0;          // robot 0's wall: the plane y = 8
+constexpr double kShiftZ_m = 3.0;         // the trajectory update lifts robot 1 by this
+constexpr double kMeshTolerance_m = 0.3;  // vertex placement tolerance (voxel 0.2 m)
+constexpr auto kWait = std::chrono::seconds(20);
+constexpr int kScans = 3;
+
+slam::PointCloudPtr Wall(bool along_x) {
+    auto cloud = std::make_shared<slam::PointCloud>();
+    for (double u = -4.0; u <= 4.0; u += 0.05) {
+        for (double z = -1.5; z <= 1.5; z += 0.05) {
+            cloud->push_back(along_x ? Eigen::Vector3f(kWallX_m, u, z)
+                                     : Eigen::Vector3f(u, kWallY_m, z));
+        }
+    }
+    return cloud;
+}
+
+template <typename Pred>
+bool WaitFor(Pred pred) {
+    const auto deadline = std::chrono::steady_clock::now() + kWait;
+    while (!pred()) {
+        if (std::chrono::steady_clock::now() > deadline) return false;
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return true;
+}
+
+/// Mean position of the mesh vertices with x beyond `x_min` (robot 1's wall), and their count.
+std::pair<Eigen::Vector3d, int> WallVertices(const slam::TriangleMesh& mesh, double x_min) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int n = 0;
+    for (const auto& v : mesh.vertices) {
+        if (v.x() > x_min) {
+            sum += v.cast<double>();
+            ++n;
+        }
+    }
+    return {n > 0 ? Eigen::Vector3d(sum / n) : sum, n};
+}
+
+struct Robot {
+    std::unique_ptr<transport::Endpoint> keyframes;
+    std::unique_ptr<transport::Endpoint> bundle;
+    std::unique_ptr<MapperActor> mapper;
+};
+
+TEST(MapperActor, PeerSubmapIsFusedAndAMovedPoseMovesTheMesh) {
+    zmq::context_t context;
+    const std::vector<int> ids{0, 1};
+    MapperConfig config;
+    config.publish_period = std::chrono::milliseconds(100);
+    std::vector<Robot> robots(2);
+    for (int r : ids) {
+        const TeamWiring w = InprocWiring(r, ids);
+        robots[r].keyframes =
+            std::make_unique<transport::Endpoint>(context, ServerConfig(w, Edge::kKeyframes));
+        robots[r].bundle =
+            std::make_unique<transport::Endpoint>(context, ServerConfig(w, Edge::kBundle));
+        robots[r].mapper = std::make_unique<MapperActor>(context, w, config);
+    }
+    for (auto& robot : robots) robot.mapper->Start();
+    for (int r : ids) {
+        ASSERT_TRUE(robots[r].keyframes->WaitForSubscribers(1, std::chrono::seconds(5)));
+        ASSERT_TRUE(robots[r].bundle->WaitForSubscribers(1, std::chrono::seconds(5)));
+        for (int i = 0; i < kScans; ++i) {  // a few scans from nearby poses
+            slam::Keyframe kf;
+            kf.robot = r;
+            kf.index = i;
+            kf.T_odom_sensor.translation() = Eigen::Vector3d(0.0, 0.0, 0.1 * i);
+            kf.cloud = Wall(r == 1);
+            ASSERT_EQ(robots[r].keyframes->Send(EncodeKeyframe(kf, i + 1)),
+                      transport::SendStatus::kSent);
+        }
+    }
+    MapperActor& m0 = *robots[0].mapper;
+    ASSERT_TRUE(WaitFor([&] { return m0.Stats().peer_submaps == 1; }))
+        << "robot 1's submap never reached robot 0";
+    ASSERT_TRUE(WaitFor([&] { return m0.Stats().integrated == kScans; }));
+    ASSERT_TRUE(WaitFor([&] { return robots[1].mapper->Stats().integrated == kScans; }));
+    std::this_thread::sleep_for(config.publish_period * 3);  // the last scans' submap bytes
+    EXPECT_EQ(m0.Stats().own_submaps, 1);
+    EXPECT_GT(robots[1].mapper->Stats().submap_bytes_sent, 0u);
+
+    const auto [own1, n_own1] = WallVertices(robots[1].mapper->FusedMesh(0.2), kWallX_m / 2);
+    const auto [before, n_before] = WallVertices(m0.FusedMesh(0.2), kWallX_m / 2);
+    EXPECT_EQ(n_before, n_own1);  // robot 0 meshes robot 1's wall as robot 1 does
+    ASSERT_GT(n_before, 50) << "robot 1's wall is not in robot 0's fused mesh";
+    EXPECT_NEAR(before.x(), kWallX_m, kMeshTolerance_m);
+
+    Eigen::Isometry3d lifted = Eigen::Isometry3d::Identity();
+    lifted.translation().z() = kShiftZ_m;
+    auto update = TrajectoryToProto(1, {lifted}, true, 7);
+    *update.mutable_header() = MakeHeader(1, 1, 0);
+    const int moves = m0.Stats().peer_moves;
+    ASSERT_EQ(robots[1].bundle->Send(transport::Pack(update)), transport::SendStatus::kSent);
+    ASSERT_TRUE(WaitFor([&] { return m0.Stats().peer_moves > moves; }));
+    EXPECT_EQ(robots[1].mapper->Stats().submaps_moved, 1);
+    EXPECT_EQ(m0.Stats().peer_submaps, 1);  // moved, not re-sent
+    const auto [after, n_after] = WallVertices(m0.FusedMesh(0.2), kWallX_m / 2);
+    ASSERT_GT(n_after, 50);
+    EXPECT_NEAR(after.z() - before.z(), kShiftZ_m, kMeshTolerance_m);
+    EXPECT_NEAR(after.x(), before.x(), kMeshTolerance_m);
+
+    for (auto& robot : robots) robot.mapper->Stop();
+    EXPECT_EQ(m0.Counters().dropped_malformed, 0u);
+    EXPECT_EQ(robots[1].mapper->Counters().dropped_malformed, 0u);
+}
+
+}  // namespace
+}  // namespace certislam::actors

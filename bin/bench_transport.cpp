@@ -106,8 +106,15 @@ EndpointConfig EdgeConfig(const char* edge, transport::Role role, const std::str
 // then blocks in zmq_poll.
 constexpr std::int64_t kSpinNs = 20'000'000;
 
-Message SpinReceive(Endpoint& endpoint) {
-    const std::int64_t spin_until = NowNs() + kSpinNs;
+// Where the bytes go through the socket (tcp, ipc-socket), ZeroMQ's I/O thread of each process
+// does the copying: a spinning application thread would take the core it needs on a 2-core
+// machine, so those receivers block in zmq_poll at once (spin 0).
+std::int64_t SpinNs(Mode mode) {
+    return mode == Mode::kTcp || mode == Mode::kIpcSocket ? 0 : kSpinNs;
+}
+
+Message SpinReceive(Endpoint& endpoint, std::int64_t spin_ns) {
+    const std::int64_t spin_until = NowNs() + spin_ns;
     while (NowNs() < spin_until) {
         if (auto message = endpoint.Receive()) return std::move(*message);
         std::this_thread::yield();
@@ -120,7 +127,7 @@ Message SpinReceive(Endpoint& endpoint) {
 
 // The receiver: acknowledges every buffer with its arrival time until a Shutdown arrives.
 void ReceiverLoop(zmq::context_t& context, const std::string& data_address,
-                  const std::string& ack_address, int socket_buffer_bytes) {
+                  const std::string& ack_address, int socket_buffer_bytes, std::int64_t spin_ns) {
     Endpoint data(context, EdgeConfig("bench", transport::Role::kPull, data_address, false,
                                       socket_buffer_bytes));
     Endpoint ack(context, EdgeConfig("bench-ack", transport::Role::kPush, ack_address, false));
@@ -134,7 +141,7 @@ void ReceiverLoop(zmq::context_t& context, const std::string& data_address,
             // Over ipc a large frame arrives as a view of the sender's shared-memory segment
             // (the Endpoint maps the descriptor); it is released before the ack so the sender
             // may reuse the segment.
-            const Message message = SpinReceive(data);
+            const Message message = SpinReceive(data, spin_ns);
             arrived = NowNs();
             if (message.Is<v1::Shutdown>()) return;
             const auto keyframe = transport::Unpack<v1::Keyframe>(message);
@@ -171,7 +178,7 @@ class Sender {
 
     std::string data_address() const { return data_.bound_addresses().front(); }
     std::string ack_address() const { return ack_.bound_addresses().front(); }
-    void WaitReceiver() { SpinReceive(ack_); }
+    void WaitReceiver() { SpinReceive(ack_, SpinNs(mode_)); }
 
     Row Run(const Plan& plan) {
         Prepare(plan);
@@ -245,7 +252,7 @@ class Sender {
     }
 
     v1::Heartbeat Ack() {
-        auto ack = transport::Unpack<v1::Heartbeat>(SpinReceive(ack_));
+        auto ack = transport::Unpack<v1::Heartbeat>(SpinReceive(ack_, SpinNs(mode_)));
         const std::uint32_t expected =
             std::to_integer<std::uint32_t>(source_.data()[0]) << 8 |
             std::to_integer<std::uint32_t>(source_.data()[source_.size() - 1]);
@@ -279,7 +286,7 @@ std::vector<Row> RunInproc(const std::vector<Plan>& plans) {
     std::exception_ptr failure;
     std::thread receiver([&] {
         try {
-            ReceiverLoop(context, "inproc://bench-data", "inproc://bench-ack", 0);
+            ReceiverLoop(context, "inproc://bench-data", "inproc://bench-ack", 0, kSpinNs);
         } catch (...) {
             failure = std::current_exception();
         }
@@ -316,7 +323,7 @@ std::vector<Row> RunTwoProcesses(Mode mode, const std::vector<Plan>& plans,
         try {
             zmq::context_t context;
             ReceiverLoop(context, both.substr(0, split), both.substr(split + 1),
-                         socket_buffer_bytes);
+                         socket_buffer_bytes, SpinNs(mode));
         } catch (const std::exception& e) {
             std::fprintf(stderr, "bench transport receiver: %s\n", e.what());
             status = 1;
@@ -417,9 +424,10 @@ int RunTransportBench(int argc, char** argv) {
     app.add_option("--max-bytes", max_bytes, "largest buffer size to run");
     app.add_option("--scale", scale, "multiply the message counts (e.g. 0.1 for a quick run)")
         ->check(CLI::PositiveNumber);
-    int socket_buffer_bytes = 0;
+    int socket_buffer_bytes = EndpointConfig{}.socket_buffer_bytes;
     app.add_option("--socket-buffer-bytes", socket_buffer_bytes,
                    "ZMQ_SNDBUF/ZMQ_RCVBUF of the data edge (0: OS default, autotuned)")
+        ->capture_default_str()
         ->check(CLI::NonNegativeNumber);
     std::vector<std::string> only;
     app.add_option("--only", only,

@@ -44,9 +44,12 @@ struct EndpointConfig {
     std::size_t max_queue_bytes = 512u << 20;  ///< receive queue byte bound
     int send_timeout_ms = 1000;                ///< kReliable: longest a Send blocks (-1 = forever)
     int reconnect_interval_ms = 100;           ///< ZeroMQ reconnect interval to a lost peer
-    /// Kernel send and receive buffer of tcp:// connections (ZMQ_SNDBUF/ZMQ_RCVBUF), bytes;
-    /// 0 keeps the OS default (Linux autotunes; an explicit size is capped by rmem/wmem_max).
-    int socket_buffer_bytes = 0;
+    /// Kernel send and receive buffer of the socket's connections (ZMQ_SNDBUF/ZMQ_RCVBUF),
+    /// bytes; 0 keeps the OS default (Linux autotunes up to several MB; an explicit size is
+    /// capped by net.core.rmem/wmem_max). 1 MiB: the bytes in flight stay in the L2 cache
+    /// between the sender's and the receiver's kernel copies (BENCHMARKS.md, issue 2: tcp 10 MB
+    /// median 1.09 GB/s vs 0.75 GB/s autotuned on the loaded 2-core machine).
+    int socket_buffer_bytes = 1 << 20;
     std::optional<CurveConfig> curve;  ///< CURVE security (tcp:// edges between robots)
     DecodeLimits limits;               ///< bounds on received frames
     std::uint32_t robot_id = 0;        ///< this robot, stamped on control messages it sends

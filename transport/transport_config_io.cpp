@@ -105,6 +105,23 @@ CurveConfig ParseCurve(const Reader& reader, const YAML::Node& edge,
     return curve;
 }
 
+// The shared-memory path of ipc:// edges and the kernel socket buffers.
+void ParseBuffers(const Reader& reader, const YAML::Node& node, EndpointConfig& config) {
+    if (node["shm"]) config.shm_enabled = reader.Scalar<bool>(node["shm"], "shm");
+    if (node["shm_threshold_bytes"]) {
+        config.shm_threshold_bytes =
+            reader.Scalar<std::size_t>(node["shm_threshold_bytes"], "shm_threshold_bytes");
+    }
+    if (node["shm_pool_segments"]) {
+        config.shm_pool_segments =
+            reader.Scalar<std::size_t>(node["shm_pool_segments"], "shm_pool_segments");
+    }
+    if (node["socket_buffer_bytes"]) {
+        config.socket_buffer_bytes =
+            reader.Scalar<int>(node["socket_buffer_bytes"], "socket_buffer_bytes");
+    }
+}
+
 EndpointConfig ParseEdge(const Reader& reader, const std::string& key, const YAML::Node& node,
                          const TransportFileConfig& file) {
     static const std::set<std::string> kFields = {"role",
@@ -116,7 +133,11 @@ EndpointConfig ParseEdge(const Reader& reader, const std::string& key, const YAM
                                                   "send_timeout_ms",
                                                   "reconnect_interval_ms",
                                                   "curve",
-                                                  "server_key"};
+                                                  "server_key",
+                                                  "shm",
+                                                  "shm_threshold_bytes",
+                                                  "shm_pool_segments",
+                                                  "socket_buffer_bytes"};
     if (!node.IsMap()) reader.Fail(node, "edge " + key + " must be a map of fields");
     for (const auto& field : node) {
         const auto name = field.first.Scalar();
@@ -151,6 +172,7 @@ EndpointConfig ParseEdge(const Reader& reader, const std::string& key, const YAM
             reader.Scalar<int>(node["reconnect_interval_ms"], "reconnect_interval_ms");
     }
     if (node["curve"]) config.curve = ParseCurve(reader, node, file);
+    ParseBuffers(reader, node, config);
     try {
         config.Validate();
     } catch (const std::invalid_argument& e) {

@@ -29,8 +29,10 @@ namespace certislam::transport {
 /// Edge fields: role (publisher subscriber dealer router push pull), bind, connect (an address
 /// or a list), delivery (latest reliable), max_queue_messages, max_queue_bytes, send_timeout_ms,
 /// reconnect_interval_ms, curve (server client; needs keys.own), server_key (client: the
-/// server's .pub file). Key paths are relative to the file's folder. Other top-level sections
-/// belong to other layers and are ignored; an unknown field inside an edge is an error.
+/// server's .pub file), shm (true false: large frames of an ipc:// edge via shared memory),
+/// shm_threshold_bytes, shm_pool_segments, socket_buffer_bytes (see EndpointConfig). Key paths are
+/// relative to the file's folder. Other top-level sections belong to other layers and are ignored;
+/// an unknown field inside an edge is an error.
 struct TransportFileConfig {
     std::uint32_t robot_id = 0;                       ///< stamped on control messages
     std::string node_name;                            ///< stamped on control messages

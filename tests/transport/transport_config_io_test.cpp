@@ -50,7 +50,9 @@ TEST_P(TransportConfigFile, BindsTheSameEdgeToTheAddressTheFileNames) {
         "  poses/pull: {role: pull, bind: " +
         bind +
         ", delivery: reliable,\n"
-        "               max_queue_messages: 7, max_queue_bytes: 4096}\n"
+        "               max_queue_messages: 7, max_queue_bytes: 4096, shm: true,\n"
+        "               shm_threshold_bytes: 2048, shm_pool_segments: 2,\n"
+        "               socket_buffer_bytes: 262144}\n"
         "  poses/push: {role: push, connect: [" +
         bind +
         "]}\n"
@@ -64,6 +66,11 @@ TEST_P(TransportConfigFile, BindsTheSameEdgeToTheAddressTheFileNames) {
     EXPECT_EQ(pull.max_queue_messages, 7u);
     EXPECT_EQ(pull.max_queue_bytes, 4096u);
     EXPECT_EQ(pull.node_name, "robot2/solver");
+    EXPECT_TRUE(pull.shm_enabled);
+    EXPECT_EQ(pull.shm_threshold_bytes, 2048u);
+    EXPECT_EQ(pull.shm_pool_segments, 2u);
+    EXPECT_EQ(pull.socket_buffer_bytes, 262144);
+    EXPECT_EQ(pull.UsesShm(), GetParam() == testing::Kind::kIpc);
     zmq::context_t context;
     EXPECT_EQ(SendThroughEdge(context, file.edges), (std::vector<std::uint64_t>{0, 1, 2, 3, 4}));
 }
@@ -133,6 +140,10 @@ TEST(TransportConfigFile, ErrorsNameTheFileLineAndField) {
     ExpectError("robot_id: 1\nkeys:\n  own: robot1.key\n",
                 {"bad.yaml:3", "keys.own", "/nonexistent/robot1.key"});
     ExpectError("edges: [\n", {"bad.yaml:"});
+    ExpectError("edges:\n  a/pull: {role: pull, bind: ipc:///tmp/a, shm_threshold_bytes: 0}\n",
+                {"bad.yaml:2", "shm_threshold_bytes"});
+    ExpectError("edges:\n  a/pull: {role: pull, bind: ipc:///tmp/a, shm: maybe}\n",
+                {"bad.yaml:2", "shm = 'maybe'"});
 }
 
 }  // namespace

@@ -57,7 +57,9 @@ struct EndpointConfig {
     /// An edge whose addresses are all ipc:// moves each binary frame of at least
     /// shm_threshold_bytes through POSIX shared memory: only a descriptor goes on the socket and
     /// the receiver's frame points into its read-only mapping. Receivers accept descriptors
-    /// only on such an edge (elsewhere they are dropped and counted).
+    /// only on such an edge (elsewhere they are dropped and counted). A descriptor not taken
+    /// within shm.loan_ttl is void (so the reaper can reclaim a segment whose reader died): a
+    /// receiver lagging further behind drops it, counted in dropped_shm; raise loan_ttl there.
     bool shm_enabled = true;
     std::size_t shm_threshold_bytes = std::size_t{64} << 10;  ///< smallest frame sent via shm
     std::size_t shm_pool_segments = 4;  ///< pre-faulted segments kept for copies of heap frames

@@ -42,6 +42,10 @@ void RbcdConfig::Validate() const {
             "must be >= 0");
     Require(cost_window >= 1, "cost_window", cost_window, "must be >= 1");
     Require(precon_regulariser > 0.0, "precon_regulariser", precon_regulariser, "must be > 0");
+    Require(polish_after_iterations >= 0, "polish_after_iterations", polish_after_iterations,
+            "must be >= 0");
+    Require(polish_max_rtr_iterations >= 1, "polish_max_rtr_iterations", polish_max_rtr_iterations,
+            "must be >= 1");
 }
 
 double LiftedCost(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X) {
@@ -62,13 +66,14 @@ struct RbcdAgent::Impl {
     Eigen::SparseMatrix<double> Qaa;  // own block of Q
     Eigen::SparseMatrix<double> Qna;  // rows: neighbour poses' columns (compacted); cols: own
     BlockFactor factor;
+    std::unique_ptr<HessianPreconditioner> hessian;  // borrows Qaa (stable: Impl is on the heap)
     std::vector<int> neighbor_ids;
     std::vector<int> public_ids;
     std::vector<int> public_local;  // local pose index of each public pose
     Eigen::MatrixXd X;              // own block
     Eigen::MatrixXd G;              // linear term X_nbr Q_na
 
-    BlockProblem Problem() const { return BlockProblem{&Qaa, &G, &factor, d}; }
+    BlockProblem Problem() const { return BlockProblem{&Qaa, &G, &factor, d, hessian.get()}; }
 };
 
 RbcdAgent::RbcdAgent(const PoseGraph& graph, const Partition& partition, int robot, int rank,
@@ -142,6 +147,8 @@ RbcdAgent::RbcdAgent(const Eigen::SparseMatrix<double>& Q, int d, const Partitio
     m.factor.setMode(Eigen::CholmodSupernodalLLt);
     m.factor.compute(M);
     CERTISLAM_CHECK(m.factor.info() == Eigen::Success);
+    if (config.hessian_preconditioner)
+        m.hessian = std::make_unique<HessianPreconditioner>(m.Qaa, d);
     m.X = Eigen::MatrixXd::Zero(rank, cols);
     m.G = Eigen::MatrixXd::Zero(rank, cols);
 }

@@ -3,6 +3,7 @@
 // Hessian is exact: Proj(2 V Q - V sym(Y^T egrad)) on rotation blocks (Weingarten term).
 #include "slam/rbcd_block.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -24,7 +25,6 @@ struct Iterate {
     Eigen::MatrixXd rgrad;
     double cost = 0.0;
     double grad_norm = 0.0;
-    double noise = 0.0;  // rounding error of `cost`: eps ||X|| ||egrad|| (a sum of large terms)
 };
 
 Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X) {
@@ -38,7 +38,6 @@ Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X) {
     it.egrad *= 2.0;
     it.rgrad = ProjectToTangent(X, it.egrad, p.d);
     it.grad_norm = it.rgrad.norm();
-    it.noise = std::numeric_limits<double>::epsilon() * X.norm() * it.egrad.norm();
     it.X = std::move(X);
     return it;
 }
@@ -47,6 +46,36 @@ double CostOnly(const BlockProblem& p, const Eigen::MatrixXd& X) {
     double f = Inner(X * (*p.Q), X);
     if (p.G && p.G->size() > 0) f += 2.0 * Inner(X, *p.G);
     return f;
+}
+
+// f(X_new) - f(X) = <D Q, X_new + X> + 2 <D, G> with D = X_new - X, and its rounding noise.
+// Subtracting two costs loses everything on metric-scale maps with a small f (parking-garage:
+// tr(X Q X^T) is a sum of terms 1e6 times larger than f, the difference of two evaluations was
+// noise of 4e-9 against model decreases of 1e-11, and every step near the optimum was rejected).
+struct CostChange {
+    double value = 0.0;
+    double noise = 0.0;
+};
+
+CostChange CostDifference(const BlockProblem& p, const Eigen::MatrixXd& X,
+                          const Eigen::MatrixXd& X_new) {
+    const Eigen::MatrixXd D = X_new - X;
+    const Eigen::MatrixXd DQ = D * (*p.Q);
+    const Eigen::MatrixXd sum = X_new + X;
+    CostChange c;
+    c.value = Inner(DQ, sum);
+    if (p.G && p.G->size() > 0) c.value += 2.0 * Inner(D, *p.G);
+    c.noise = std::numeric_limits<double>::epsilon() * DQ.norm() * sum.norm();
+    return c;
+}
+
+int ValueIndex(const Eigen::SparseMatrix<double>& M, int row, int col) {
+    const int* inner = M.innerIndexPtr();
+    const int* begin = inner + M.outerIndexPtr()[col];
+    const int* end = inner + M.outerIndexPtr()[col + 1];
+    const int* it = std::lower_bound(begin, end, row);
+    CERTISLAM_CHECK(it != end && *it == row);
+    return static_cast<int>(it - inner);
 }
 
 Eigen::MatrixXd Hessian(const BlockProblem& p, const Iterate& it, const Eigen::MatrixXd& V) {
@@ -58,7 +87,13 @@ Eigen::MatrixXd Hessian(const BlockProblem& p, const Iterate& it, const Eigen::M
 Eigen::MatrixXd Precondition(const BlockProblem& p, const Iterate& it, const Eigen::MatrixXd& V) {
     // Column-major right-hand side: Eigen's sparse triangular solves are slow on row-major ones.
     const Eigen::MatrixXd Vt = V.transpose();
-    const Eigen::MatrixXd Z = p.precon->solve(Vt).transpose();
+    Eigen::MatrixXd Zt;
+    if (p.hessian != nullptr && p.hessian->valid()) {
+        Zt = p.hessian->Solve(Vt);
+    } else {
+        Zt = p.precon->solve(Vt);
+    }
+    const Eigen::MatrixXd Z = Zt.transpose();
     return ProjectToTangent(it.X, Z, p.d);
 }
 
@@ -112,6 +147,78 @@ TcgResult TruncatedCg(const BlockProblem& p, const Iterate& it, double radius, i
 
 }  // namespace
 
+HessianPreconditioner::HessianPreconditioner(const Eigen::SparseMatrix<double>& Q, int d)
+    : Q_(&Q), d_(d) {
+    const int b = d + 1;
+    const int k = static_cast<int>(Q.cols()) / b;
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(Q.nonZeros() + static_cast<size_t>(k) * d * d + 1);
+    for (int c = 0; c < Q.outerSize(); ++c) {
+        for (Eigen::SparseMatrix<double>::InnerIterator it(Q, c); it; ++it) {
+            triplets.emplace_back(static_cast<int>(it.row()), c, it.value());
+            if (it.row() == c) scale_ = std::max(scale_, it.value());
+        }
+    }
+    if (scale_ <= 1.0) scale_ = std::max(scale_, 1.0);
+    for (int i = 0; i < k; ++i) {
+        for (int a = 0; a < d; ++a) {
+            for (int c = 0; c < d; ++c) triplets.emplace_back(b * i + a, b * i + c, 0.0);
+        }
+    }
+    // The translation gauge (all translations moved together) is a null direction of Q_aa
+    // and S_aa when the block has no neighbour: anchor the first translation.
+    if (k > 0) triplets.emplace_back(d, d, scale_);
+    base_.resize(Q.rows(), Q.cols());
+    base_.setFromTriplets(triplets.begin(), triplets.end());
+    base_.makeCompressed();
+    for (int i = 0; i < k; ++i) {
+        for (int a = 0; a < d; ++a) {
+            for (int c = 0; c < d; ++c)
+                block_index_.push_back(ValueIndex(base_, b * i + a, b * i + c));
+            diag_index_.push_back(ValueIndex(base_, b * i + a, b * i + a));
+        }
+    }
+    factor_.cholmod().print = 0;  // an indefinite S_aa is an expected outcome
+    factor_.setMode(Eigen::CholmodSupernodalLLt);
+    factor_.analyzePattern(base_);
+}
+
+bool HessianPreconditioner::Refactor(const Eigen::MatrixXd& X, const Eigen::MatrixXd& egrad) {
+    const int b = d_ + 1;
+    const int k = static_cast<int>(X.cols()) / b;
+    CERTISLAM_CHECK(X.cols() == Q_->cols() && egrad.cols() == X.cols());
+    Eigen::SparseMatrix<double> S = base_;
+    double* values = S.valuePtr();
+    size_t index = 0;
+    for (int i = 0; i < k; ++i) {  // Lambda_i = sym(Y_i^T (X Q + G)_i) = sym(Y_i^T egrad_i) / 2
+        const Eigen::MatrixXd P = X.middleCols(b * i, d_).transpose() * egrad.middleCols(b * i, d_);
+        for (int a = 0; a < d_; ++a) {
+            for (int c = 0; c < d_; ++c)
+                values[block_index_[index++]] -= 0.25 * (P(a, c) + P(c, a));
+        }
+    }
+    const double floor = min_shift * scale_;
+    double mu = last_shift_ > 0.0 ? std::max(floor, 0.01 * last_shift_) : floor;
+    valid_ = false;
+    for (int attempt = 0; attempt < max_attempts; ++attempt, mu *= 100.0) {
+        Eigen::SparseMatrix<double> M = S;
+        for (int idx : diag_index_) M.valuePtr()[idx] += mu;
+        factor_.factorize(M);
+        ++factorizations_;
+        if (factor_.info() == Eigen::Success) {
+            valid_ = true;
+            last_shift_ = mu;
+            return true;
+        }
+    }
+    last_shift_ = 0.0;
+    return false;
+}
+
+Eigen::MatrixXd HessianPreconditioner::Solve(const Eigen::MatrixXd& B) const {
+    return factor_.solve(B);
+}
+
 double BlockCost(const BlockProblem& problem, const Eigen::MatrixXd& X) {
     return CostOnly(problem, X);
 }
@@ -124,6 +231,7 @@ BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& opti
                               Eigen::MatrixXd* X) {
     CERTISLAM_CHECK(p.Q && p.precon && X);
     Iterate it = Evaluate(p, *X);
+    if (p.hessian != nullptr) p.hessian->Refactor(it.X, it.egrad);
     BlockRtrOutcome out;
     out.cost_before = it.cost;
     out.grad_norm_before = it.grad_norm;
@@ -135,23 +243,22 @@ BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& opti
         ++out.iterations;
         const TcgResult step = TruncatedCg(p, it, radius, options.max_tcg_iterations);
         Eigen::MatrixXd X_new = Retract(it.X, step.eta, p.d);
-        const double f_new = CostOnly(p, X_new);
+        const CostChange change = CostDifference(p, it.X, X_new);
         const double model = -Inner(it.rgrad, step.eta) - 0.5 * Inner(step.eta, step.Heta);
-        // Manopt's rho regularisation keeps rho meaningful when both decreases are tiny.
-        // Also above the cost's own rounding noise: on metric-scale maps with a small f
-        // (parking-garage) tr(X Q X^T) is a sum of terms 1e6 times larger than f, and rho made of
-        // noise rejects every step near the optimum although the gradient is still exact.
+        // Manopt's rho regularisation keeps rho meaningful when both decreases are tiny; the
+        // cost change is computed directly (CostDifference), its own noise is far smaller.
         const double reg = std::max(
             1e3 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(it.cost)),
-            kNoiseMultiple * it.noise);
-        const double rho = (it.cost - f_new + reg) / (model + reg);
+            kNoiseMultiple * change.noise);
+        const double rho = (-change.value + reg) / (model + reg);
         if (rho < 0.25) {
             radius *= 0.25;
         } else if (rho > 0.75 && step.hit_boundary) {
             radius = std::min(2.0 * radius, max_radius);
         }
-        if (rho > 0.1 && f_new <= it.cost + reg) {
+        if (rho > 0.1 && change.value <= reg) {
             it = Evaluate(p, std::move(X_new));
+            if (p.hessian != nullptr) p.hessian->Refactor(it.X, it.egrad);
             ++out.accepted;
         }
     }

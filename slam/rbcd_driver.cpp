@@ -1,6 +1,7 @@
 // SolveRbcd: all robots' agents in one process. Each outer iteration updates every colour class
 // of the robot graph in turn (or only the class with the largest gradient when greedy), robots of
 // one class together; RBCD++ extrapolates (Nesterov) and restarts when the cost would rise.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <vector>
@@ -8,6 +9,7 @@
 #include "slam/check.h"
 #include "slam/connection_laplacian.h"
 #include "slam/rbcd.h"
+#include "slam/rbcd_block.h"
 #include "slam/stiefel.h"
 
 namespace certislam::slam {
@@ -101,6 +103,53 @@ Evaluation Evaluate(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd&
     return e;
 }
 
+// Q without the entries between poses of different robots, regularised like an agent's factor:
+// the block-Jacobi preconditioner, one independent block per robot (each robot's own Q_aa).
+Eigen::SparseMatrix<double> BlockDiagonal(const Eigen::SparseMatrix<double>& Q, int d,
+                                          const Partition& partition, double regulariser) {
+    const int b = d + 1;
+    std::vector<int> robot_of(Q.cols() / b);
+    for (int k = 0; k < partition.num_robots(); ++k) {
+        for (int i = partition.begin[k]; i < partition.begin[k + 1]; ++i) robot_of[i] = k;
+    }
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(Q.nonZeros() + Q.cols());
+    double max_diag = 0.0;
+    for (int c = 0; c < Q.outerSize(); ++c) {
+        for (Eigen::SparseMatrix<double>::InnerIterator it(Q, c); it; ++it) {
+            const int row = static_cast<int>(it.row());
+            if (robot_of[row / b] != robot_of[c / b]) continue;
+            triplets.emplace_back(row, c, it.value());
+            if (row == c) max_diag = std::max(max_diag, it.value());
+        }
+    }
+    const double shift = regulariser * (max_diag > 0.0 ? max_diag : 1.0);
+    for (int c = 0; c < Q.cols(); ++c) triplets.emplace_back(c, c, shift);
+    Eigen::SparseMatrix<double> M(Q.rows(), Q.cols());
+    M.setFromTriplets(triplets.begin(), triplets.end());
+    return M;
+}
+
+// The distributed finish (RbcdConfig::polish_after_iterations): trust-region steps on the whole
+// X. Per truncated-CG iteration each robot computes its own columns of V Q (its neighbours'
+// columns of V in, as for RBCD's linear term) and applies its own factor of Q_aa; the inner
+// products are sums of one scalar per robot. Run here in one process on the assembled X.
+int Polish(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partition,
+           const RbcdConfig& config, double grad_tol, Eigen::MatrixXd* X) {
+    BlockFactor factor;
+    factor.setMode(Eigen::CholmodSupernodalLLt);
+    factor.compute(BlockDiagonal(Q, d, partition, config.precon_regulariser));
+    CERTISLAM_CHECK(factor.info() == Eigen::Success);
+    const Eigen::MatrixXd no_linear_term;
+    const BlockProblem problem{&Q, &no_linear_term, &factor, d, nullptr};
+    BlockRtrOptions options;
+    options.max_iterations = config.polish_max_rtr_iterations;
+    options.max_tcg_iterations = config.max_tcg_iterations;
+    options.grad_tol = grad_tol;
+    options.grad_reduction = 0.0;  // only the global tolerance stops it
+    return SolveBlockRtr(problem, options, X).iterations;
+}
+
 }  // namespace
 
 RbcdResult SolveRbcd(const PoseGraph& graph, const Partition& partition, const Eigen::MatrixXd& X0,
@@ -117,6 +166,7 @@ RbcdResult SolveRbcd(const PoseGraph& graph, const Partition& partition, const E
     const Eigen::SparseMatrix<double> Q = ConnectionLaplacian(graph);
     Team team(Q, d, partition, static_cast<int>(X0.rows()), config, ColourRobots(graph, partition));
     const bool accelerate = config.acceleration && partition.num_robots() > 1;
+    const bool polish = partition.num_robots() > 1 && config.polish_after_iterations > 0;
 
     RbcdResult result;
     Eigen::MatrixXd X = X0;
@@ -133,6 +183,7 @@ RbcdResult SolveRbcd(const PoseGraph& graph, const Partition& partition, const E
             break;
         }
         if (result.iterations >= config.max_iterations) break;
+        if (polish && result.iterations >= config.polish_after_iterations) break;
         if (elapsed() > config.max_seconds) {
             result.status = RbcdResult::Status::kMaxTime;
             break;
@@ -176,6 +227,17 @@ RbcdResult SolveRbcd(const PoseGraph& graph, const Partition& partition, const E
             result.status = RbcdResult::Status::kStalled;
             break;
         }
+    }
+    if (polish && result.status != RbcdResult::Status::kConverged &&
+        result.status != RbcdResult::Status::kMaxTime) {
+        const double tol = config.rel_grad_tol * std::max(1.0, eval.cost);
+        result.polish_rtr_iterations = Polish(Q, d, partition, config, tol, &X);
+        eval = Evaluate(Q, X, d);
+        result.status = eval.grad_norm <= config.rel_grad_tol * std::max(1.0, eval.cost)
+                            ? RbcdResult::Status::kConverged
+                            : RbcdResult::Status::kStalled;
+        if (progress)
+            progress(RbcdProgress{result.iterations, eval.cost, eval.grad_norm, elapsed()});
     }
     result.X = std::move(X);
     result.cost = eval.cost;

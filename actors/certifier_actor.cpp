@@ -1,4 +1,5 @@
-// Certifier: bundles in, joint Q and X assembled, certificate, report out, escape blocks out.
+// Certifier: bundles in; centrally (joint Q and X at the anchor) or as a distributed round
+// (certifier_actor_rounds.cpp); report out, escape blocks out.
 #include "actors/certifier_actor.h"
 
 #include <algorithm>
@@ -17,6 +18,44 @@ void CertifierConfig::Validate() const {
                                     std::to_string(max_staircase_steps) + ": must be >= 0");
     }
     if (period.count() <= 0) throw std::invalid_argument("CertifierConfig.period: must be > 0");
+    if (round_timeout.count() <= 0) {
+        throw std::invalid_argument("CertifierConfig.round_timeout: must be > 0");
+    }
+    if (lanczos.max_krylov < 2 || lanczos.check_every < 1 || !(lanczos.tolerance > 0.0)) {
+        throw std::invalid_argument(
+            "CertifierConfig.lanczos: max_krylov >= 2, check_every >= 1, tolerance > 0");
+    }
+}
+
+namespace {
+
+constexpr std::size_t kHistory = 16;  ///< distinct bundles kept per robot for rounds
+
+/// FNV-1a over raw bytes.
+void Mix(std::uint64_t* h, const void* data, std::size_t size) {
+    const auto* bytes = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < size; ++i) *h = (*h ^ bytes[i]) * 1099511628211ull;
+}
+
+}  // namespace
+
+std::uint64_t CertifierActor::Digest(const Bundle& b) {
+    std::uint64_t h = 14695981039346656037ull;
+    const int phase = b.status.phase();
+    Mix(&h, &phase, sizeof(phase));
+    for (const auto& id : b.block.ids) Mix(&h, &id, sizeof(id));
+    const Eigen::Index dims[2] = {b.block.blocks.rows(), b.block.blocks.cols()};
+    Mix(&h, dims, sizeof(dims));
+    Mix(&h, b.block.blocks.data(),
+        sizeof(double) * static_cast<std::size_t>(b.block.blocks.size()));
+    for (const auto& e : b.edges) {
+        Mix(&h, &e.a, sizeof(e.a));
+        Mix(&h, &e.b, sizeof(e.b));
+        Mix(&h, e.T_a_b.matrix().data(), sizeof(double) * 16);
+        Mix(&h, &e.kappa, sizeof(e.kappa));
+        Mix(&h, &e.tau, sizeof(e.tau));
+    }
+    return h;
 }
 
 CertifierActor::CertifierActor(zmq::context_t& context, TeamWiring wiring, CertifierConfig config)
@@ -27,12 +66,17 @@ CertifierActor::CertifierActor(zmq::context_t& context, TeamWiring wiring, Certi
 void CertifierActor::OnStart() {
     out_ = &OpenServer(Edge::kCertify);
     anchor_ = RobotId() == *std::min_element(Wiring().robots.begin(), Wiring().robots.end());
-    if (!anchor_) return;
+    if (anchor_ || config_.distributed) SubscribeBundles();
+    if (config_.distributed) SubscribeRounds();
+    Every(config_.period, [this] { Tick(); });
+}
+
+void CertifierActor::SubscribeBundles() {
     for (int r : Wiring().robots) OpenClient(Edge::kBundle, r);
     On(v1::SolverStatus::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto status = transport::Unpack<v1::SolverStatus>(m);
         if (!status) return false;
-        pending_[int(status->header().robot_id())] = Bundle{*status, {}, {}};
+        pending_[int(status->header().robot_id())] = Bundle{*status, {}, {}, 0};
         return true;
     });
     On(v1::LoopClosure::descriptor()->full_name(), [this](const transport::Message& m) {
@@ -49,32 +93,62 @@ void CertifierActor::OnStart() {
         const int robot = proto ? int(proto->header().robot_id()) : -1;
         if (!block) return false;
         const auto it = pending_.find(robot);
-        if (it == pending_.end()) return true;  // joined mid-bundle: wait for the next one
+        if (it == pending_.end()) return true;  // joined mid-bundle (or an escape): wait
         it->second.block = std::move(*block);
+        it->second.digest = Digest(it->second);
+        auto& recent = history_[robot];
+        std::erase_if(recent, [&](const Bundle& b) { return b.digest == it->second.digest; });
+        recent.push_back(it->second);
+        if (recent.size() > kHistory) recent.erase(recent.begin());
+        // A re-sent bundle of an unchanged solution needs no new check.
+        const auto last = bundles_.find(robot);
+        const bool same = last != bundles_.end() && last->second.digest == it->second.digest;
         bundles_[robot] = std::move(it->second);
         pending_.erase(it);
-        dirty_ = true;
+        dirty_ = dirty_ || !same;
+        if (waiting_) {
+            const v1::CertificateRound round = *waiting_;  // OnRound may reset waiting_
+            OnRound(round);
+        }
         return true;
     });
-    Every(config_.period, [this] { Tick(); });
 }
 
 void CertifierActor::Tick() {
-    if (!dirty_ || bundles_.size() != Wiring().robots.size()) return;
+    ResendIfStalled();
+    if (!anchor_) return;
+    if (lanczos_ && !lanczos_->Done()) {
+        if (std::chrono::steady_clock::now() - round_progress_ < config_.round_timeout) return;
+        dirty_ = true;  // a robot missed the round: open a new one
+    }
+    slam::PoseGraph graph;
+    Eigen::MatrixXd X;
+    if (!dirty_ || !Assemble(&graph, &X)) return;
+    dirty_ = false;
+    if (config_.distributed) {
+        StartRound();
+    } else {
+        CheckCentrally(graph, X);
+    }
+}
+
+bool CertifierActor::Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const {
+    if (bundles_.size() != Wiring().robots.size()) return false;
     // Every robot final, at one rank, its block covering its poses.
     std::map<int, int> offset;
-    slam::PoseGraph graph;
     const int rank = static_cast<int>(bundles_.begin()->second.block.blocks.rows());
     for (const auto& [robot, b] : bundles_) {
-        if (b.status.phase() != v1::SolverStatus::PHASE_CONVERGED) return;
-        if (b.block.blocks.rows() != rank || b.block.ids.size() != b.status.num_poses()) return;
-        offset[robot] = graph.n;
-        for (const auto& id : b.block.ids) graph.ids.push_back(id);
-        graph.n += static_cast<int>(b.block.ids.size());
+        if (b.status.phase() != v1::SolverStatus::PHASE_CONVERGED) return false;
+        if (b.block.blocks.rows() != rank || b.block.ids.size() != b.status.num_poses()) {
+            return false;
+        }
+        offset[robot] = graph->n;
+        for (const auto& id : b.block.ids) graph->ids.push_back(id);
+        graph->n += static_cast<int>(b.block.ids.size());
     }
-    Eigen::MatrixXd X(rank, 4 * graph.n);
+    X->resize(rank, 4 * graph->n);
     for (const auto& [robot, b] : bundles_)
-        X.middleCols(4 * offset[robot], b.block.blocks.cols()) = b.block.blocks;
+        X->middleCols(4 * offset[robot], b.block.blocks.cols()) = b.block.blocks;
     const auto index = [&](const slam::PoseId& id) -> int {
         const auto it = bundles_.find(id.robot);
         if (it == bundles_.end() || id.index >= int(it->second.block.ids.size())) return -1;
@@ -85,19 +159,22 @@ void CertifierActor::Tick() {
             slam::RelativePoseMeasurement m;
             m.i = index(e.a);
             m.j = index(e.b);
-            if (m.i < 0 || m.j < 0) return;  // a newer bundle of the other robot is on its way
+            if (m.i < 0 || m.j < 0) return false;  // a newer bundle of the other robot is coming
             m.R = e.T_a_b.linear();
             m.t = e.T_a_b.translation();
             m.kappa = e.kappa;
             m.tau = e.tau;
-            graph.edges.push_back(m);
+            graph->edges.push_back(m);
         }
     }
-    dirty_ = false;
+    return true;
+}
+
+void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X) {
     const auto Q = slam::ConnectionLaplacian(graph);
     const auto result = certify::Certify(Q, X, 3, config_.certificate);
     ++checks_;
-    auto report = ToProto(result, static_cast<std::uint32_t>(rank));
+    auto report = ToProto(result, static_cast<std::uint32_t>(X.rows()));
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     report.set_iteration(graph.edges.size());  // which graph: its edge count
     Send(*out_, transport::Pack(report), true);

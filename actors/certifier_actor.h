@@ -1,15 +1,21 @@
-// Certifier actor: the team anchor's certifier (lowest robot id) assembles the converged blocks
-// and edges the solvers hand over, checks the dual certificate (lambda_min of S), reports the
-// verdict to every robot, and when it is a saddle sends each robot its block at rank r+1
-// (Riemannian staircase). The other robots' certifiers listen to the verdict.
+// Certifier actor. Distributed mode (default): when the team anchor (lowest robot id) has every
+// robot's converged bundle it opens a round naming them; every robot's certifier builds its own
+// rows of S and the certifiers run Lanczos together, exchanging only the entries of v at public
+// poses and partial sums, so every robot reaches lambda_min and the verdict itself. Centralised
+// mode: the anchor assembles the joint Q and X and checks alone. Either way the anchor reports the
+// verdict to every robot's solver and, at a saddle, sends each robot its block at rank r+1
+// (Riemannian staircase, computed centrally at the anchor).
 #pragma once
 
 #include <atomic>
 #include <chrono>
 #include <map>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <vector>
 
+#include "actors/certifier_actor_lanczos.h"
 #include "actors/codec.h"
 #include "actors/node_actor.h"
 #include "certify/certificate.h"
@@ -22,6 +28,11 @@ struct CertifierConfig {
     certify::CertificateConfig certificate;  ///< the check
     int max_staircase_steps = 3;             ///< saddle escapes at most, >= 0
     std::chrono::milliseconds period{200};   ///< checks at most this often, > 0
+    bool distributed = true;  ///< every robot's rows of S, S*v between neighbours; false: anchor
+    LanczosSettings lanczos;  ///< the distributed eigen-solver
+    std::chrono::milliseconds round_timeout{15000};  ///< a round silent this long: a new one
+    std::chrono::milliseconds round_resend{500};     ///< a round silent this long: last messages
+                                                     ///< re-sent (a peer may have joined late)
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -37,6 +48,10 @@ class CertifierActor final : public NodeActor {
     int Checks() const { return checks_.load(); }
     /// Saddle escapes sent so far.
     int Escapes() const { return escapes_.load(); }
+    /// Distributed rounds this robot finished.
+    int Rounds() const { return rounds_.load(); }
+    /// The verdict of the last distributed round this robot finished (thread-safe).
+    std::optional<DistributedVerdict> LastVerdict() const;
 
   protected:
     void OnStart() override;
@@ -47,16 +62,42 @@ class CertifierActor final : public NodeActor {
         v1::SolverStatus status;
         std::vector<slam::LoopClosure> edges;
         PoseBlocks block;
+        std::uint64_t digest = 0;  ///< hash of the contents (equal for re-sent copies)
     };
+    static std::uint64_t Digest(const Bundle& b);
+    void SubscribeBundles();
     void Tick();
+    bool Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const;
+    void CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X);
     void Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
                 const Eigen::VectorXd& v, double gradient_tolerance);
+    // Distributed rounds (certifier_actor_rounds.cpp).
+    void SubscribeRounds();
+    void StartRound();
+    void OnRound(const v1::CertificateRound& round);
+    void Deliver(const transport::Message& m);
+    void RoundFinished();
+    void ResendIfStalled();
 
     CertifierConfig config_;
     bool anchor_ = false;
     transport::Endpoint* out_ = nullptr;
-    std::map<int, Bundle> pending_;  ///< bundles being received
-    std::map<int, Bundle> bundles_;  ///< last complete bundle per robot
+    std::map<int, Bundle> pending_;                ///< bundles being received
+    std::map<int, Bundle> bundles_;                ///< last complete bundle per robot
+    std::map<int, std::vector<Bundle>> history_;   ///< recent distinct bundles, newest last
+    std::unique_ptr<LanczosParticipant> lanczos_;  ///< the round in progress
+    std::uint64_t round_ = 0;                      ///< its id
+    std::uint64_t round_edges_ = 0;                ///< edges of its graph
+    std::uint32_t round_rank_ = 0;                 ///< its relaxation rank
+    std::uint64_t rounds_opened_ = 0;              ///< anchor: rounds opened
+    std::chrono::steady_clock::time_point round_progress_{};  ///< last message of the round
+    std::chrono::steady_clock::time_point round_resent_{};    ///< last re-send of a stall
+    std::vector<transport::Message> round_sent_;   ///< round opening, last vector, last sums
+    std::optional<v1::CertificateRound> waiting_;  ///< a round whose bundles are not all here
+    std::map<std::uint64_t, std::vector<transport::Message>> early_;  ///< rounds not begun
+    std::atomic<int> rounds_{0};
+    mutable std::mutex verdict_mutex_;
+    std::optional<DistributedVerdict> verdict_;
     bool dirty_ = false;
     int level_ = 0;
     std::atomic<int> checks_{0};

@@ -34,7 +34,7 @@ int RunRobot(int argc, char** argv) {
         TeamConfig config = LoadTeamConfig(config_path);
         if (!log_dir.empty()) config.log_dir = log_dir;
         const actors::TeamWiring wiring = TcpWiring(config, id);
-        const SimulatedSource source(config);
+        const TeamSource source(config.source, config.robots);
         zmq::context_t context;
         std::unique_ptr<transport::ZapAuthenticator> zap;
         if (wiring.own_keys) {
@@ -56,7 +56,7 @@ int RunRobot(int argc, char** argv) {
         const auto bytes = node.BytesSentToPeers();
         node.Stop();
         const std::string report =
-            WriteTeamOutputs(out_dir, {id}, {snapshot}, {source.Truth(id)}, bytes, seconds);
+            WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds);
         std::printf("%s\n", report.c_str());
         if (!json) std::printf("%s\n", done ? "certified" : "TIMED OUT");
         return done ? 0 : 2;

@@ -26,7 +26,7 @@ int RunRun(int argc, char** argv) {
     const auto start = std::chrono::steady_clock::now();
     try {
         const TeamConfig config = LoadTeamConfig(config_path);
-        const SimulatedSource source(config);
+        const TeamSource source(config.source, config.robots);
         zmq::context_t context;
         std::vector<std::unique_ptr<actors::RobotNode>> nodes;
         for (int r : config.robots) {
@@ -45,16 +45,14 @@ int RunRun(int argc, char** argv) {
         const double seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         std::vector<actors::SolverSnapshot> snapshots;
-        std::vector<slam::Trajectory> truth;
         std::uint64_t bytes = 0;
         for (auto& node : nodes) {
             snapshots.push_back(node->Snapshot());
-            truth.push_back(source.Truth(node->robot()));
             bytes += node->BytesSentToPeers();
         }
         for (auto& node : nodes) node->Stop();
         const std::string report =
-            WriteTeamOutputs(out_dir, config.robots, snapshots, truth, bytes, seconds);
+            WriteTeamOutputs(out_dir, config.robots, snapshots, source, bytes, seconds);
         if (json) {
             std::printf("%s\n", report.c_str());
         } else {

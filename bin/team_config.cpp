@@ -1,6 +1,8 @@
 // JSON configuration of run/robot modes, the simulated source, and the team's outputs.
 #include "bin/team_config.h"
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -30,11 +32,28 @@ void ReadSolver(const json& j, actors::RobotNodeConfig* node) {
     node->certifier.max_staircase_steps = max_staircase;
 }
 
+void ReadCertifier(const json& j, const std::string& path, actors::RobotNodeConfig* node) {
+    const std::string mode = j.value("mode", "distributed");
+    if (mode != "distributed" && mode != "centralised") {
+        throw std::runtime_error(path + ": certifier.mode: \"" + mode +
+                                 "\" is not distributed or centralised");
+    }
+    node->certifier.distributed = mode == "distributed";
+    Read(j, "max_krylov", &node->certifier.lanczos.max_krylov);
+    Read(j, "tolerance", &node->certifier.lanczos.tolerance);
+}
+
 void ReadMatcher(const json& j, actors::RobotNodeConfig* node) {
     Read(j, "max_sc_distance", &node->matcher.max_sc_distance);
     Read(j, "query_stride", &node->matcher.query_stride);
     Read(j, "min_intra_gap", &node->matcher.min_intra_gap);
     Read(j, "intra_robot", &node->matcher.intra_robot);
+    if (j.contains("registration")) {
+        const json& r = j.at("registration");
+        Read(r, "voxel_m", &node->matcher.registration.voxel_m);
+        Read(r, "min_fitness", &node->matcher.registration.min_fitness);
+        Read(r, "max_correspondence_m", &node->matcher.registration.max_correspondence_m);
+    }
 }
 
 void ReadNetwork(const json& j, const std::string& dir, TeamConfig* config) {
@@ -53,6 +72,42 @@ void ReadNetwork(const json& j, const std::string& dir, TeamConfig* config) {
     }
 }
 
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+/// The reference figures of one robot (see WriteTeamOutputs).
+void Evaluate(const TeamSource& source, int robot, const actors::SolverSnapshot& s, json* out) {
+    const auto truth = source.Truth(robot);
+    if (!truth || s.trajectory.empty()) return;
+    const auto pairs = slam::Associate(*truth, s.trajectory, {});
+    (*out)["ate_rmse_own_alignment"] = slam::EvaluateTeam({pairs}, true).ate_rmse;
+    // The trajectory is in its anchor's first-keyframe frame; that frame in the team frame is
+    // the anchor's first odometry pose, moved by where the anchor's odometry frame truly is.
+    const auto T_team_odom_anchor = source.TrueTeamOdom(s.anchor);
+    if (!source.TruthInTeamFrame() || !T_team_odom_anchor) return;
+    const Eigen::Isometry3d T_team_sol = *T_team_odom_anchor * source.Odometry(s.anchor, 0);
+    slam::Trajectory in_team = s.trajectory;
+    for (auto& p : in_team) p.T_world_body = T_team_sol * p.T_world_body;
+    (*out)["ate_rmse_team_frame"] =
+        slam::EvaluateTeam({slam::Associate(*truth, in_team, {})}, false).ate_rmse;
+    const auto T_team_odom_true = source.TrueTeamOdom(robot);
+    if (!T_team_odom_true) return;
+    double max_t = 0.0, max_r = 0.0;
+    const int n = std::min(static_cast<int>(in_team.size()), source.NumKeyframes(robot));
+    for (int i = 0; i < n; ++i) {
+        // Each keyframe gives one estimate of where the robot's odometry frame is.
+        const Eigen::Isometry3d T_team_odom =
+            in_team[static_cast<size_t>(i)].T_world_body * source.Odometry(robot, i).inverse();
+        max_t =
+            std::max(max_t, (T_team_odom.translation() - T_team_odom_true->translation()).norm());
+        max_r = std::max(
+            max_r, Eigen::AngleAxisd(T_team_odom.linear().transpose() * T_team_odom_true->linear())
+                           .angle() *
+                       kRadToDeg);
+    }
+    (*out)["offset_error_m"] = max_t;
+    (*out)["offset_error_deg"] = max_r;
+}
+
 }  // namespace
 
 TeamConfig LoadTeamConfig(const std::string& path) {
@@ -63,17 +118,12 @@ TeamConfig LoadTeamConfig(const std::string& path) {
     try {
         const json j = json::parse(in);
         config.robots = j.at("robots").get<std::vector<int>>();
-        const json& source = j.at("source");
-        if (source.value("kind", "simulator") != "simulator") {
-            throw std::runtime_error("source.kind: only \"simulator\" is supported");
-        }
-        Read(source, "seed", &config.simulator.seed);
-        Read(source, "max_keyframes", &config.max_keyframes);
+        if (!j.contains("source")) throw std::runtime_error("source: missing");
+        config.source = ReadSourceConfig(j.at("source"), path, config.robots);
         Read(j, "log_dir", &config.log_dir);
-        Read(source, "keyframe_spacing_m", &config.simulator.keyframe_spacing_m);
-        config.simulator.num_robots = static_cast<int>(config.robots.size());
         if (j.contains("solver")) ReadSolver(j.at("solver"), &config.node);
         if (j.contains("matcher")) ReadMatcher(j.at("matcher"), &config.node);
+        if (j.contains("certifier")) ReadCertifier(j.at("certifier"), path, &config.node);
         if (j.contains("network")) {
             ReadNetwork(j.at("network"), std::filesystem::path(path).parent_path().string(),
                         &config);
@@ -84,11 +134,11 @@ TeamConfig LoadTeamConfig(const std::string& path) {
     if (config.robots.empty()) throw std::runtime_error(path + ": robots: must not be empty");
     for (size_t k = 0; k < config.robots.size(); ++k) {
         if (config.robots[k] != static_cast<int>(k)) {
-            throw std::runtime_error(path + ": robots: must be 0, 1, ..., N-1 (simulator ids)");
+            throw std::runtime_error(path + ": robots: must be 0, 1, ..., N-1");
         }
     }
     try {
-        config.simulator.Validate();
+        config.source.simulator.Validate();
         config.node.Validate();
     } catch (const std::invalid_argument& e) {
         throw std::runtime_error(path + ": " + e.what());
@@ -145,37 +195,9 @@ actors::TeamWiring TcpWiring(const TeamConfig& config, int robot) {
     return wiring;
 }
 
-SimulatedSource::SimulatedSource(const TeamConfig& config)
-    : max_keyframes_(config.max_keyframes),
-      generator_(std::make_shared<slam::MissionGenerator>(config.simulator)) {}
-
-int SimulatedSource::NumKeyframes(int robot) const {
-    const int n = generator_->num_keyframes(robot);
-    return max_keyframes_ > 0 ? std::min(n, max_keyframes_) : n;
-}
-
-actors::KeyframeSource SimulatedSource::For(int robot) const {
-    auto next = std::make_shared<int>(0);
-    return [this, robot, next]() -> std::optional<slam::Keyframe> {
-        if (*next >= NumKeyframes(robot)) return std::nullopt;
-        return generator_->Generate(robot, (*next)++).keyframe;
-    };
-}
-
-slam::Trajectory SimulatedSource::Truth(int robot) const {
-    slam::Trajectory out;
-    const Eigen::Isometry3d T_team_world = generator_->T_world_odom(0).inverse();
-    for (int i = 0; i < NumKeyframes(robot); ++i) {
-        out.push_back({static_cast<double>(generator_->PoseOnly(robot, i).stamp_ns) * 1e-9,
-                       T_team_world * generator_->T_world_sensor_truth(robot, i)});
-    }
-    return out;
-}
-
 std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& robots,
                              const std::vector<actors::SolverSnapshot>& snapshots,
-                             const std::vector<slam::Trajectory>& truth, std::uint64_t bytes_sent,
-                             double seconds) {
+                             const TeamSource& source, std::uint64_t bytes_sent, double seconds) {
     json report;
     report["robots"] = json::array();
     int keyframes = 0, loops = 0;
@@ -188,11 +210,7 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
                    {"anchor", s.anchor},
                    {"inter_robot_loops", s.inter_robot_loops},
                    {"staircase_level", s.staircase_level}};
-        if (k < truth.size()) {
-            const auto pairs = slam::Associate(truth[k], s.trajectory, {});
-            const auto errors = slam::EvaluateTeam({pairs}, true);
-            robot["ate_rmse_own_alignment"] = errors.ate_rmse;
-        }
+        Evaluate(source, robots[k], s, &robot);
         report["robots"].push_back(robot);
         if (!dir.empty()) {
             std::filesystem::create_directories(dir);
@@ -201,9 +219,12 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
                                   slam::TrajectoryFormat::kTum, &error);
         }
     }
+    if (!source.TruthKind().empty()) report["reference"] = source.TruthKind();
     const auto& report_of = snapshots.front().report;
     report["certified"] = report_of && report_of->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
     report["lambda_min"] = report_of ? report_of->lambda_min() : 0.0;
+    report["verdict"] = report_of ? v1::CertificateVerdict_Name(report_of->verdict()) : "none";
+    if (report_of) report["duality_gap"] = report_of->duality_gap();
     report["inter_robot_loops"] = loops / 2;  // each loop is known to both of its robots
     report["bytes_sent"] = bytes_sent;
     report["bytes_per_keyframe"] = keyframes > 0 ? double(bytes_sent) / keyframes : 0.0;

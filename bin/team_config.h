@@ -9,7 +9,7 @@
 
 #include "actors/robot_node.h"
 #include "actors/wiring.h"
-#include "slam/simulator.h"
+#include "bin/team_config_sources.h"
 
 namespace certislam::bin {
 
@@ -24,8 +24,7 @@ struct RobotEndpointConfig {
 /// Everything the configuration file says.
 struct TeamConfig {
     std::vector<int> robots;                     ///< team, ascending
-    slam::SimulatorConfig simulator;             ///< source: the mission simulator
-    int max_keyframes = 0;                       ///< keyframes per robot at most (0: all)
+    SourceConfig source;                         ///< where the keyframes come from
     actors::RobotNodeConfig node;                ///< actors' settings
     std::map<int, RobotEndpointConfig> network;  ///< robot mode: per robot
     std::string log_dir;  ///< durable per-robot logs here (replayed on start); empty: none
@@ -41,26 +40,13 @@ TeamConfig LoadTeamConfig(const std::string& path);
 /// The wiring of `robot` over tcp (robot mode; CURVE when keys are configured).
 actors::TeamWiring TcpWiring(const TeamConfig& config, int robot);
 
-/// A shared simulated mission: each robot's keyframes generated on demand.
-class SimulatedSource {
-  public:
-    explicit SimulatedSource(const TeamConfig& config);
-    /// The source of one robot's keyframes (valid while this object lives).
-    actors::KeyframeSource For(int robot) const;
-    /// Keyframes robot `robot` will publish.
-    int NumKeyframes(int robot) const;
-    /// Ground truth of robot `robot` in robot 0's odometry frame (for evaluation).
-    slam::Trajectory Truth(int robot) const;
-
-  private:
-    int max_keyframes_;
-    std::shared_ptr<const slam::MissionGenerator> generator_;
-};
-
-/// Writes each robot's trajectory (TUM) and report.json into `dir`; returns the JSON report.
+/// Writes each robot's trajectory (TUM) and report.json into `dir` (none when empty); returns
+/// the JSON report. Per robot, where `source` has a reference: ATE RMSE after aligning the robot
+/// alone (`ate_rmse_own_alignment`), in the team frame without alignment
+/// (`ate_rmse_team_frame`), and the error of its recovered odometry frame (`offset_error_m`,
+/// `offset_error_deg`, worst over its keyframes).
 std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& robots,
                              const std::vector<actors::SolverSnapshot>& snapshots,
-                             const std::vector<slam::Trajectory>& truth, std::uint64_t bytes_sent,
-                             double seconds);
+                             const TeamSource& source, std::uint64_t bytes_sent, double seconds);
 
 }  // namespace certislam::bin

@@ -7,6 +7,8 @@
 #include <map>
 #include <mutex>
 
+#include "slam/cloud_codec.h"
+
 namespace certislam::actors {
 namespace {
 
@@ -66,10 +68,34 @@ transport::SharedBuffer CloudFrame(const slam::PointCloudPtr& cloud, v1::CloudRe
                                          points * kPointStride);
 }
 
+/// Fills a CloudRef and returns the frame holding the cloud encoded by slam/cloud_codec.h.
+transport::SharedBuffer CompactCloudFrame(const slam::PointCloudPtr& cloud, v1::CloudRef* ref) {
+    const slam::CloudEncodeResult encoded = slam::EncodeCloud(cloud ? *cloud : slam::PointCloud{});
+    ref->set_frame_index(0);
+    ref->set_point_count((cloud ? cloud->size() : 0) - encoded.points_dropped);
+    ref->set_point_stride_bytes(0);
+    ref->set_format(v1::POINT_FORMAT_XYZ_CODEC);
+    ref->set_byte_length(encoded.bytes.size());
+    return transport::SharedBuffer::Copy(encoded.bytes.data(), encoded.bytes.size());
+}
+
+/// The cloud of a compact frame, or nullopt when it does not decode to the declared count.
+std::optional<slam::PointCloudPtr> CompactCloudOf(const transport::SharedBuffer& frame,
+                                                  const v1::CloudRef& ref) {
+    if (ref.byte_length() != frame.size()) return std::nullopt;
+    slam::CloudDecodeResult decoded =
+        slam::DecodeCloud(reinterpret_cast<const std::uint8_t*>(frame.data()), frame.size());
+    if (!decoded.ok() || decoded.cloud.size() != ref.point_count()) return std::nullopt;
+    return slam::PointCloudPtr(std::make_shared<slam::PointCloud>(std::move(decoded.cloud)));
+}
+
 /// The cloud a CloudRef names in a message, or nullopt when the reference does not fit.
 std::optional<slam::PointCloudPtr> CloudOf(const transport::Message& message,
                                            const v1::CloudRef& ref) {
     if (ref.frame_index() >= message.frames.size()) return std::nullopt;
+    if (ref.format() == v1::POINT_FORMAT_XYZ_CODEC) {
+        return CompactCloudOf(message.frames[ref.frame_index()], ref);
+    }
     if (ref.format() != v1::POINT_FORMAT_XYZ_F32 && ref.format() != v1::POINT_FORMAT_XYZI_F32) {
         return std::nullopt;
     }
@@ -170,10 +196,11 @@ std::optional<slam::Keyframe> DecodeKeyframe(const transport::Message& message) 
 }
 
 transport::Message EncodeCloudReply(const v1::CloudReply& header_fields,
-                                    const slam::PointCloudPtr& cloud) {
+                                    const slam::PointCloudPtr& cloud, CloudWire wire) {
     v1::CloudReply proto = header_fields;
     proto.set_found(cloud != nullptr);
-    auto frame = CloudFrame(cloud, proto.mutable_cloud());
+    auto frame = wire == CloudWire::kCompact ? CompactCloudFrame(cloud, proto.mutable_cloud())
+                                             : CloudFrame(cloud, proto.mutable_cloud());
     return transport::Pack(proto, {std::move(frame)});
 }
 

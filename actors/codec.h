@@ -44,10 +44,17 @@ transport::Message EncodeKeyframe(const slam::Keyframe& keyframe, std::uint64_t 
 /// frame into a new cloud.
 std::optional<slam::Keyframe> DecodeKeyframe(const transport::Message& message);
 
+/// How a cloud reply carries its cloud.
+enum class CloudWire {
+    kFloat32,  ///< float32 xyz (12-byte stride), zero-copy in-process
+    kCompact,  ///< slam/cloud_codec.h: 1 cm steps, Morton order, zstd (~3.5x smaller; order lost)
+};
+
 /// A cloud reply (found or not) for a cloud request, with the cloud in binary frame 0.
 transport::Message EncodeCloudReply(const v1::CloudReply& header_fields,
-                                    const slam::PointCloudPtr& cloud);
-/// The cloud of a CloudReply message; nullopt when malformed or not found.
+                                    const slam::PointCloudPtr& cloud,
+                                    CloudWire wire = CloudWire::kCompact);
+/// The cloud of a CloudReply message (either wire form); nullopt when malformed or not found.
 std::optional<slam::PointCloudPtr> DecodeCloudReply(const transport::Message& message,
                                                     v1::CloudReply* reply);
 

@@ -11,12 +11,14 @@
 #include <string>
 #include <vector>
 
+#include "bin/bench_frontend_bandwidth.h"
 #include "bin/command.h"
 #include "slam/cloud_io.h"
 #include "slam/descriptor_database.h"
 #include "slam/downsample.h"
 #include "slam/registration.h"
 #include "slam/scan_context.h"
+#include "slam/scan_context_codec.h"
 
 namespace certislam::bin {
 namespace {
@@ -92,6 +94,9 @@ int RunFrontendBench(int argc, char** argv) {
     app.add_option("--data", data, "the shared data folder (holds lidar/)");
     app.add_option("--stored", stored, "descriptors in the database")->check(CLI::PositiveNumber);
     app.add_option("--queries", queries, "retrieval queries")->check(CLI::PositiveNumber);
+    bool skip_missions = false;
+    app.add_flag("--skip-missions", skip_missions,
+                 "skip the loop-stage bytes on the simulated mission and KAIST03 (~1 min)");
     CLI11_PARSE(app, argc, argv);
     const std::string lidar = data + "/lidar/";
     const std::string kitti = lidar + "kitti00_scancontext_samples/velodyne/";
@@ -153,6 +158,12 @@ int RunFrontendBench(int argc, char** argv) {
     double cloud_bytes = 0;
     for (const auto& s : scans) cloud_bytes += 12.0 * slam::VoxelDownsample(s, 0.2).size();
     cloud_bytes /= static_cast<double>(scans.size());
+    const double compact_bytes =
+        static_cast<double>(slam::EncodeScanContextCompact(bases[0]).size());
+    // 5. Loop-stage bytes per keyframe on whole missions (codecs + cloud-request gate).
+    const std::vector<BandwidthFigures> missions =
+        skip_missions ? std::vector<BandwidthFigures>{}
+                      : MeasureMissionBandwidth(lidar + "mulran_kaist03_keyframes");
     if (json) {
         nlohmann::json j{{"descriptor_ms_per_kitti_scan", descriptor_ms},
                          {"descriptor_cpu_ms_per_kitti_scan", descriptor_cpu_ms},
@@ -163,7 +174,10 @@ int RunFrontendBench(int argc, char** argv) {
                          {"retrieval_candidates_found", found},
                          {"descriptor_bytes", descriptor_bytes},
                          {"downsampled_cloud_bytes_0_2m", cloud_bytes},
-                         {"bandwidth_ratio", cloud_bytes / descriptor_bytes}};
+                         {"bandwidth_ratio", cloud_bytes / descriptor_bytes},
+                         {"descriptor_compact_bytes", compact_bytes},
+                         {"bandwidth_ratio_compact", cloud_bytes / compact_bytes}};
+        for (const auto& m : missions) j["missions"].push_back(m.ToJson());
         for (const auto& p : pairs) {
             j["registration"].push_back(
                 {{"pair", p.name}, {"ms", p.ms}, {"cpu_ms", p.cpu_ms}, {"accepted", p.accepted}});
@@ -182,6 +196,9 @@ int RunFrontendBench(int argc, char** argv) {
     }
     std::printf("bandwidth: descriptor %.0f B vs 0.2 m downsampled cloud %.0f B: %.1fx less\n",
                 descriptor_bytes, cloud_bytes, cloud_bytes / descriptor_bytes);
+    std::printf("bandwidth: compact descriptor %.0f B: %.1fx less than that cloud\n", compact_bytes,
+                cloud_bytes / compact_bytes);
+    for (const auto& m : missions) std::printf("mission: %s\n", m.ToJson().dump().c_str());
     return 0;
 }
 

@@ -92,7 +92,9 @@ sensor_msgs::PointCloud2 EncodePointCloud2(const PointCloud& cloud, const std::s
     msg.row_step = msg.point_step * msg.width;
     msg.is_dense = true;
     msg.data.resize(static_cast<std::size_t>(msg.row_step));
-    if (!cloud.empty()) std::memcpy(msg.data.data(), cloud.data(), msg.data.size());
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+        std::memcpy(msg.data.data() + 12 * i, cloud[i].data(), 12);  // float32 x, y, z
+    }
     return msg;
 }
 

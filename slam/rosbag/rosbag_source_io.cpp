@@ -49,7 +49,10 @@ std::string TopicList(rosbag::View& view) {
     std::string list;
     for (const auto& [topic, type] : topics) {
         if (!list.empty()) list += ", ";
-        list += topic + " [" + type + "]";
+        list += topic;
+        list += " [";
+        list += type;
+        list += "]";
     }
     return list.empty() ? "none" : list;
 }
@@ -77,8 +80,10 @@ std::optional<std::vector<StampedPose>> ReadOdometry(rosbag::Bag& bag, const std
         Eigen::Quaterniond q(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z);
         const Eigen::Vector3d t(p.position.x, p.position.y, p.position.z);
         if (!t.allFinite() || !q.coeffs().allFinite() || q.norm() < 0.5) {
-            *error = path + ": odometry message " + std::to_string(n) + " on '" + topic +
-                     "' has a non-finite position or a degenerate quaternion";
+            *error = path;
+            *error += ": odometry message " + std::to_string(n);
+            *error += " on '" + topic;
+            *error += "' has a non-finite position or a degenerate quaternion";
             return std::nullopt;
         }
         StampedPose sp;
@@ -136,8 +141,10 @@ Status ReadClouds(rosbag::Bag& bag, const std::string& path, const RosbagSourceC
             PointCloud cloud;
             std::string why;
             if (!DecodePointCloud2(*msg, &cloud, &why)) {
-                *error = path + ": cloud message " + std::to_string(n) + " on '" +
-                         config.cloud_topic + "': " + why;
+                *error = path;
+                *error += ": cloud message " + std::to_string(n);
+                *error += " on '" + config.cloud_topic;
+                *error += "': " + why;
                 return Status::kBadScan;
             }
             if (in_odom) {

@@ -41,9 +41,12 @@ void PrintTable(const DemoReport& report) {
         report.inter_robot_loops, report.intra_robot_loops, report.candidates,
         static_cast<long long>(report.bytes_sent), report.seconds, report.keyframes_per_second);
     std::printf("mission: %s\n", report.mission.c_str());
+    std::printf("certified row and certificate from: %s\n", report.certified_source.c_str());
     std::printf("pipeline: %s\n", report.pipeline.c_str());
     if (!report.actor_graph.is_null()) {
         std::printf("actor graph over inproc: %s\n", report.actor_graph.dump().c_str());
+        std::printf("pipeline's own certified solution: %s\n",
+                    report.pipeline_certified.dump().c_str());
     }
     for (const auto& w : report.warnings) std::printf("WARNING: %s\n", w.c_str());
     if (!report.out_dir.empty()) std::printf("files in %s\n", report.out_dir.c_str());
@@ -66,11 +69,17 @@ int RunDemo(int argc, char** argv) {
         ->check(CLI::Range(0.0, 0.9));
     app.add_flag("!--concurrent", options.sequential,
                  "robots drive at the same time (default: one after another, as in the paper)");
-    app.add_flag("--actors", options.actors,
-                 "also run the keyframes through the actor graph (6 actors per robot, inproc)");
+    bool pipeline_only = false, actors_flag = false;
+    app.add_flag("--pipeline", pipeline_only,
+                 "certified row from the slam/certify pipeline called directly, no actor graph");
+    app.add_flag("--actors", actors_flag, "the default (kept for older scripts): actor graph");
+    app.add_option("--actors-timeout", options.actors_timeout_s,
+                   "seconds the actor graph gets to be certified and quiet")
+        ->check(CLI::PositiveNumber);
     app.add_flag("--quiet", options.quiet, "no progress bar");
     app.add_flag("--json", options.json, "print the report as JSON");
     CLI11_PARSE(app, argc, argv);
+    options.actors = !pipeline_only;
     const DemoReport report = RunDemoMission(options);
     if (options.json) {
         std::printf("%s\n", DemoReportJson(report).dump(2).c_str());

@@ -1,11 +1,14 @@
-// The demo's second path: the same simulated keyframes through the whole actor graph (six
-// actors per robot, every robot in this process, talking over inproc), as `certislam run` does.
+// The demo's main path: the simulated keyframes through the whole actor graph (one RobotNode per
+// robot, every robot in this process, talking over inproc), as `certislam run` does.
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <string>
 #include <vector>
 
 #include "slam/keyframe.h"
+#include "slam/mesh.h"
 #include "slam/trajectory.h"
 
 namespace certislam::bin {
@@ -14,15 +17,32 @@ namespace certislam::bin {
 struct ActorMissionResult {
     bool done = false;                         ///< every robot certified and quiet in time
     bool certified = false;                    ///< the last certificate heard says certified
+    std::string verdict = "none";              ///< that certificate's verdict, in words
+    double lambda_min = 0.0;                   ///< lambda_min(S) of that certificate
+    double suboptimality_bound = 0.0;          ///< its f - f* bound
+    double cost = 0.0;                         ///< its objective f
+    int rank = 0;                              ///< its relaxation rank
     std::vector<slam::Trajectory> trajectory;  ///< [robot], in the anchor robot's frame
+    std::vector<int> anchor;                   ///< [robot] robot whose frame it is in
     std::vector<int> inter_robot_loops;        ///< [robot] inter-robot loops its solver knows
+    int team_inter_robot_loops = 0;            ///< distinct inter-robot loops in the team graph
+    std::vector<int> loops_found;              ///< [robot] loops its matcher accepts at the end
+    std::vector<std::uint64_t> solver_steps;   ///< [robot] block updates its solver made
     std::uint64_t bytes_sent = 0;              ///< bytes on edges between robots, measured
-    double seconds = 0.0;                      ///< start to done
+    slam::TriangleMesh mesh;  ///< robot 0's mapper: every robot's submaps fused, team frame
+    int submaps = 0;          ///< submaps in robot 0's map (own + received)
+    std::uint64_t map_bytes_sent = 0;  ///< compressed submap bytes the mappers sent to peers
+    double seconds = 0.0;              ///< start to done
 };
 
+/// Progress of the run: stage and fraction done in [0, 1].
+using ActorProgress = std::function<void(const std::string& stage, double fraction)>;
+
 /// Runs robots[k] (keyframes with clouds) through one RobotNode per robot over inproc until
-/// every node is done or `timeout_s` passes. `rank` and `query_stride` as in the demo.
+/// every node is done or `timeout_s` passes; every keyframe queries the loop matcher. The TSDF
+/// mappers run with voxels of `voxel_m` (0: no mapper, no mesh).
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
-                                    double timeout_s);
+                                    double timeout_s, double voxel_m,
+                                    const ActorProgress& progress = {});
 
 }  // namespace certislam::bin

@@ -1,7 +1,8 @@
 // `certislam demo` end to end: the real binary on the default simulated two-robot mission (the
 // claim of Table I; a shorter mission has too few rendezvous to show it) writes every file (TUM
 // trajectories, g2o, PLY, report.json, SVG), the JSON has the issue's keys, and certified RBCD
-// beats odometry and the one-time alignment for every robot, certified; --keyframes truncates.
+// from the actor graph beats odometry and the one-time alignment for every robot, certified;
+// --keyframes truncates (checked on the --pipeline path, the quick one).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -41,7 +42,7 @@ class Demo : public ::testing::Test {
         std::filesystem::remove_all(*dir_);
         run_ = new testing::ShellResult(testing::Shell(
             std::string(CERTISLAM_BINARY) + " demo --robots " + std::to_string(kRobots) +
-            " --voxel 1.0 --quiet --json --out " + dir_->string()));
+            " --voxel 1.0 --actors-timeout 240 --quiet --json --out " + dir_->string()));
     }
     static void TearDownTestSuite() {
         std::filesystem::remove_all(*dir_);
@@ -70,6 +71,10 @@ TEST_F(Demo, ReportHasTheIssueKeysAndCertifiedBeatsTheBaselines) {
         EXPECT_TRUE(j.contains(key)) << key;
     }
     EXPECT_TRUE(j["certified"].get<bool>());
+    // The certified row, the certificate, the loops and the bytes come from the actor graph.
+    EXPECT_EQ(j["certified_source"].get<std::string>(), "actor graph");
+    EXPECT_TRUE(j["actor_graph"]["done"].get<bool>());
+    EXPECT_GT(j["actor_graph"]["map_submaps"].get<int>(), kRobots);  // every robot's submaps
     EXPECT_GT(j["inter_robot_loops"].get<int>(), 0);
     EXPECT_GT(j["bytes_sent"].get<std::int64_t>(), 0);
     EXPECT_GT(j["seconds"].get<double>(), 0.0);
@@ -130,7 +135,7 @@ TEST(DemoOptions, KeyframesFlagShortensTheMission) {
                      ("certislam_demo_short_" + std::to_string(getpid()));
     const auto run = testing::Shell(std::string(CERTISLAM_BINARY) + " demo --keyframes " +
                                     std::to_string(kShortKeyframes) +
-                                    " --voxel 0 --quiet --json --out " + dir.string());
+                                    " --voxel 0 --pipeline --quiet --json --out " + dir.string());
     std::filesystem::remove_all(dir);
     ASSERT_EQ(run.exit_code, 0) << run.out;
     const auto j = nlohmann::json::parse(run.out);

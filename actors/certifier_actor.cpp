@@ -119,7 +119,14 @@ void CertifierActor::Tick() {
     if (!anchor_) return;
     if (lanczos_ && !lanczos_->Done()) {
         if (std::chrono::steady_clock::now() - round_progress_ < config_.round_timeout) return;
-        dirty_ = true;  // a robot missed the round: open a new one
+        // A robot's certifier stays silent (not running, or lost the round): this graph is
+        // checked centrally instead; the next change of a bundle opens a distributed round again.
+        lanczos_.reset();
+        ++fallbacks_;
+        slam::PoseGraph graph;
+        Eigen::MatrixXd X;
+        if (Assemble(&graph, &X)) CheckCentrally(graph, X);
+        return;
     }
     slam::PoseGraph graph;
     Eigen::MatrixXd X;

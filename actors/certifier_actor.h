@@ -30,9 +30,10 @@ struct CertifierConfig {
     std::chrono::milliseconds period{200};   ///< checks at most this often, > 0
     bool distributed = true;  ///< every robot's rows of S, S*v between neighbours; false: anchor
     LanczosSettings lanczos;  ///< the distributed eigen-solver
-    std::chrono::milliseconds round_timeout{15000};  ///< a round silent this long: a new one
-    std::chrono::milliseconds round_resend{500};     ///< a round silent this long: last messages
-                                                     ///< re-sent (a peer may have joined late)
+    std::chrono::milliseconds round_timeout{5000};  ///< a round silent this long: the anchor
+                                                    ///< checks that graph centrally
+    std::chrono::milliseconds round_resend{500};    ///< a round silent this long: last messages
+                                                    ///< re-sent (a peer may have joined late)
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -50,6 +51,8 @@ class CertifierActor final : public NodeActor {
     int Escapes() const { return escapes_.load(); }
     /// Distributed rounds this robot finished.
     int Rounds() const { return rounds_.load(); }
+    /// Anchor: rounds abandoned for a silent robot and checked centrally instead.
+    int Fallbacks() const { return fallbacks_.load(); }
     /// The verdict of the last distributed round this robot finished (thread-safe).
     std::optional<DistributedVerdict> LastVerdict() const;
 
@@ -96,6 +99,7 @@ class CertifierActor final : public NodeActor {
     std::optional<v1::CertificateRound> waiting_;  ///< a round whose bundles are not all here
     std::map<std::uint64_t, std::vector<transport::Message>> early_;  ///< rounds not begun
     std::atomic<int> rounds_{0};
+    std::atomic<int> fallbacks_{0};
     mutable std::mutex verdict_mutex_;
     std::optional<DistributedVerdict> verdict_;
     bool dirty_ = false;

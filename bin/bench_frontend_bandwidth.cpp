@@ -50,7 +50,7 @@ std::vector<std::vector<slam::Keyframe>> AsReceived(
 GatedFigures VerifyThrough(const std::vector<std::vector<slam::Keyframe>>& robots,
                            const std::vector<std::vector<slam::Keyframe>>& received,
                            const std::vector<std::vector<double>>& encoded,
-                           const std::vector<slam::LoopCandidate>& candidates,
+                           const std::vector<slam::MissionCandidate>& candidates,
                            const std::vector<std::vector<Eigen::Isometry3d>>& truth,
                            const slam::LoopDetectionConfig& config,
                            const slam::CloudRequestGateConfig& gate_config) {

@@ -37,9 +37,6 @@ struct BandwidthFigures {
     nlohmann::json ToJson() const;
 };
 
-// (slam/mission_loops.h is not included here: its LoopCandidate clashes with
-// slam/descriptor_database.h's, which bench_frontend.cpp includes.)
-
 /// The default simulated two-robot mission and KAIST03 split into two robots (even/odd).
 std::vector<BandwidthFigures> MeasureMissionBandwidth(const std::string& kaist_folder);
 

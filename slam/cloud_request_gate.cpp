@@ -9,7 +9,7 @@
 namespace certislam::slam {
 namespace {
 
-bool SamePlace(const LoopCandidate& a, const LoopCandidate& b, int window) {
+bool SamePlace(const MissionCandidate& a, const MissionCandidate& b, int window) {
     return a.query.robot == b.query.robot && a.match.robot == b.match.robot &&
            std::abs(a.query.index - b.query.index) <= window &&
            std::abs(a.match.index - b.match.index) <= window;
@@ -32,7 +32,7 @@ CloudRequestGate::CloudRequestGate(const CloudRequestGateConfig& config) : confi
     config_.Validate();
 }
 
-CloudRequestGate::Decision CloudRequestGate::Admit(const LoopCandidate& candidate) {
+CloudRequestGate::Decision CloudRequestGate::Admit(const MissionCandidate& candidate) {
     if (candidate.query.robot == candidate.match.robot) return Decision::kRegister;
     if (!(candidate.sc_distance < config_.max_sc_distance)) return Decision::kSkip;
     const bool seen = std::any_of(admitted_.begin(), admitted_.end(), [&](const auto& a) {
@@ -48,8 +48,8 @@ CloudRequestGate::Decision CloudRequestGate::Admit(const LoopCandidate& candidat
     return Decision::kFetch;
 }
 
-void CloudRequestGate::Failed(const LoopCandidate& candidate) {
-    std::erase_if(admitted_, [&](const LoopCandidate& a) {
+void CloudRequestGate::Failed(const MissionCandidate& candidate) {
+    std::erase_if(admitted_, [&](const MissionCandidate& a) {
         return a.query == candidate.query && a.match == candidate.match;
     });
 }

@@ -33,14 +33,14 @@ class CloudRequestGate {
     };
 
     /// Decides on `candidate` and records an admitted request.
-    Decision Admit(const LoopCandidate& candidate);
+    Decision Admit(const MissionCandidate& candidate);
 
     /// The registration of an admitted candidate failed: its place is open again.
-    void Failed(const LoopCandidate& candidate);
+    void Failed(const MissionCandidate& candidate);
 
   private:
     CloudRequestGateConfig config_;
-    std::vector<LoopCandidate> admitted_;          // open requests, in admission order
+    std::vector<MissionCandidate> admitted_;       // open requests, in admission order
     std::vector<std::pair<int, PoseId>> fetched_;  // (querying robot, match) clouds at hand
 };
 

@@ -66,12 +66,12 @@ void LoopDetectionConfig::Validate() const {
     Require(gt_noise_r_rad >= 0, "gt_noise_r_rad", gt_noise_r_rad, "must be >= 0");
 }
 
-std::vector<LoopCandidate> DetectCandidates(
+std::vector<MissionCandidate> DetectCandidates(
     const std::vector<std::vector<ScanContext>>& descriptors,
     const std::vector<std::vector<Keyframe>>& robots, const LoopDetectionConfig& config) {
     // Brute-force ring-key search: a few hundred keyframes per mission make it cheaper than
     // maintaining a tree here; the loop-matcher actor uses the front end's database.
-    std::vector<LoopCandidate> candidates;
+    std::vector<MissionCandidate> candidates;
     std::vector<PoseId> seen;
     std::vector<std::pair<float, PoseId>> nearest;
     int query_count = 0;
@@ -91,7 +91,7 @@ std::vector<LoopCandidate> DetectCandidates(
             std::partial_sort(nearest.begin(), nearest.begin() + static_cast<long>(k),
                               nearest.end(),
                               [](const auto& a, const auto& b) { return a.first < b.first; });
-            LoopCandidate best;
+            MissionCandidate best;
             for (size_t c = 0; c < k; ++c) {
                 const PoseId id = nearest[c].second;
                 const auto match = ScanContextDistanceFast(query, descriptors[id.robot][id.index],

@@ -44,7 +44,7 @@ struct LoopDetectionConfig {
 };
 
 /// A Scan Context candidate before verification.
-struct LoopCandidate {
+struct MissionCandidate {
     PoseId query;              ///< the keyframe that searched
     PoseId match;              ///< the stored keyframe it matched
     double sc_distance = 1.0;  ///< Scan Context distance
@@ -75,7 +75,7 @@ struct LoopDetectionResult {
 /// Scan Context candidates: for each robot's keyframe (in stamp order over the team) the best
 /// of its ring-key nearest neighbours among keyframes already seen of other robots, and of its
 /// own robot at least min_intra_gap keyframes back; kept below max_sc_distance.
-std::vector<LoopCandidate> DetectCandidates(
+std::vector<MissionCandidate> DetectCandidates(
     const std::vector<std::vector<ScanContext>>& descriptors,
     const std::vector<std::vector<Keyframe>>& robots, const LoopDetectionConfig& config);
 

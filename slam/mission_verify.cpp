@@ -47,7 +47,7 @@ std::int64_t SentCloudBytes(const PointCloud& cloud, const LoopDetectionConfig& 
 bool FrontEndVerificationAvailable() { return true; }
 
 std::vector<VerifiedLoop> VerifyCandidates(const std::vector<std::vector<Keyframe>>& robots,
-                                           const std::vector<LoopCandidate>& candidates,
+                                           const std::vector<MissionCandidate>& candidates,
                                            const LoopDetectionConfig& config,
                                            LoopDetectionStats* stats) {
     const RegistrationConfig registration = RegistrationSettings(config);

@@ -23,7 +23,7 @@ struct VerifiedLoop {
 /// keeps those registration accepts with inlier RMSE <= max_rmse_m. Counts verified/rejected
 /// and the cloud bytes of inter-robot candidates in *stats.
 std::vector<VerifiedLoop> VerifyCandidates(const std::vector<std::vector<Keyframe>>& robots,
-                                           const std::vector<LoopCandidate>& candidates,
+                                           const std::vector<MissionCandidate>& candidates,
                                            const LoopDetectionConfig& config,
                                            LoopDetectionStats* stats);
 

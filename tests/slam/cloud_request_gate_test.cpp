@@ -9,8 +9,8 @@ namespace {
 
 using Decision = CloudRequestGate::Decision;
 
-LoopCandidate Candidate(int qr, int qi, int mr, int mi, double distance = 0.1) {
-    LoopCandidate c;
+MissionCandidate Candidate(int qr, int qi, int mr, int mi, double distance = 0.1) {
+    MissionCandidate c;
     c.query = {qr, qi};
     c.match = {mr, mi};
     c.sc_distance = distance;

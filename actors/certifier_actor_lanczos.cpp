@@ -271,7 +271,7 @@ void LanczosParticipant::Advance() {
                                             : DistributedVerdict::Status::kNotConverged);
                 }
                 beta_.push_back(b);
-                basis_.push_back(w_ / b);
+                basis_.emplace_back(w_ / b);
                 ++step_;
                 SendVector();
                 phase_ = Phase::kProduct;

@@ -30,8 +30,10 @@ struct RbcdConfig {
     double precon_regulariser = 1e-8;  ///< Cholesky of Q_aa + this * max diag(Q_aa) I, > 0
     /// Precondition each block's truncated CG with the Cholesky of its exact Hessian matrix
     /// S_aa = Q_aa - Lambda_a(X) (+ a small shift), refactorised per trust-region iterate;
-    /// false: Q_aa alone (the factor above).
-    bool hessian_preconditioner = true;
+    /// false: Q_aa alone (the factor above). Off by default: measured faster on parking-garage,
+    /// slower on city10000 and cubicle (BENCHMARKS.md, issue 3, h2), and it moved the actor
+    /// test's 2-robot result 1.02e-5 from the central one (tolerance 1e-5).
+    bool hessian_preconditioner = false;
     /// Multi-robot: after this many RBCD iterations without convergence (or an earlier stall),
     /// finish with distributed second-order steps: a trust region on the whole X whose Hessian-
     /// vector products need only neighbours' entries (as RBCD's linear terms do) and whose

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "slam/keyframe_sources_io.h"
+#include "slam/rosbag/rosbag_source_io.h"
 
 namespace certislam::bin {
 namespace {
@@ -71,14 +72,37 @@ SourceConfig::Kind ReadKind(const json& source, const std::string& config_path) 
     if (kind == "keyframe_folder") return SourceConfig::Kind::kKeyframeFolder;
     if (kind == "kitti") return SourceConfig::Kind::kKitti;
     if (kind == "split") return SourceConfig::Kind::kSplit;
-    if (kind == "rosbag") {
-        throw FieldError(config_path, "kind",
-                         "\"rosbag\" is not built into this certislam yet (the ROS bag reader is "
-                         "not linked); convert the bag to a keyframe folder");
-    }
+    if (kind == "rosbag") return SourceConfig::Kind::kRosbag;
     throw FieldError(
         config_path, "kind",
         "\"" + kind + "\" is not one of simulator, keyframe_folder, kitti, split, rosbag");
+}
+
+/// "cloud_topic", "odometry_topic", "max_stamp_gap_s", "cloud_frame" (auto | sensor | odom).
+slam::RosbagSourceConfig ReadRosbagConfig(const json& source, const std::string& config_path) {
+    slam::RosbagSourceConfig rosbag;
+    rosbag.cloud_topic = source.value("cloud_topic", rosbag.cloud_topic);
+    rosbag.odometry_topic = source.value("odometry_topic", rosbag.odometry_topic);
+    rosbag.max_stamp_gap_s = source.value("max_stamp_gap_s", rosbag.max_stamp_gap_s);
+    if (!(rosbag.max_stamp_gap_s >= 0.0) || !std::isfinite(rosbag.max_stamp_gap_s)) {
+        throw FieldError(config_path, "max_stamp_gap_s", "must be a finite number >= 0");
+    }
+    const std::string frame = source.value("cloud_frame", "auto");
+    if (frame == "auto") {
+        rosbag.cloud_frame = slam::RosbagCloudFrame::kAuto;
+    } else if (frame == "sensor") {
+        rosbag.cloud_frame = slam::RosbagCloudFrame::kSensor;
+    } else if (frame == "odom") {
+        rosbag.cloud_frame = slam::RosbagCloudFrame::kOdom;
+    } else {
+        throw FieldError(config_path, "cloud_frame",
+                         "\"" + frame + "\" is not one of auto, sensor, odom");
+    }
+    if (rosbag.cloud_topic.empty() || rosbag.odometry_topic.empty()) {
+        throw FieldError(config_path, rosbag.cloud_topic.empty() ? "cloud_topic" : "odometry_topic",
+                         "must be a non-empty topic name");
+    }
+    return rosbag;
 }
 
 }  // namespace
@@ -107,8 +131,11 @@ SourceConfig ReadSourceConfig(const json& source, const std::string& config_path
             config.simulator.num_robots = static_cast<int>(robots.size());
             break;
         case SourceConfig::Kind::kKeyframeFolder:
+            config.paths = PerRobot<std::string>(source, "paths", config_path, robots, path_of);
+            break;
         case SourceConfig::Kind::kRosbag:
             config.paths = PerRobot<std::string>(source, "paths", config_path, robots, path_of);
+            config.rosbag = ReadRosbagConfig(source, config_path);
             break;
         case SourceConfig::Kind::kKitti:
             config.select_keyframes = source.value("select_keyframes", true);
@@ -201,9 +228,12 @@ void TeamSource::Load(const SourceConfig& config, const std::vector<int>& robots
             break;
         }
         case SourceConfig::Kind::kRosbag:
-            throw std::runtime_error(
-                "source.kind \"rosbag\": not built into this certislam (the ROS bag reader is "
-                "not linked yet); convert the bag to a keyframe folder");
+            for (const int r : robots) {
+                recorded_[r] =
+                    check(slam::ReadRosbagKeyframes(config.paths.at(r), config.rosbag, options));
+            }
+            truth_kind_ = "the bag's odometry (LIO-SAM estimates, each robot in its own frame)";
+            break;
         case SourceConfig::Kind::kSimulator:
             break;
     }

@@ -13,6 +13,7 @@
 
 #include "actors/ingest_actor.h"
 #include "slam/keyframe.h"
+#include "slam/rosbag/rosbag_source_io.h"
 #include "slam/simulator.h"
 #include "slam/trajectory.h"
 
@@ -35,6 +36,7 @@ struct SourceConfig {
     std::map<int, KittiSequenceConfig> kitti;  ///< kKitti: robot -> sequence
     bool select_keyframes = true;              ///< kKitti: LIO-SAM's 1 m / 0.2 rad selection
     std::string split_path;                    ///< kSplit: the SC-LIO-SAM folder
+    slam::RosbagSourceConfig rosbag;           ///< kRosbag: topics and pairing
     Eigen::Isometry3d T_offset_world =
         Eigen::Isometry3d::Identity();  ///< kSplit: robot r > 0's
                                         ///< odometry frame is the world moved by this^r

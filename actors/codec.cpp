@@ -8,6 +8,7 @@
 #include <mutex>
 
 #include "slam/cloud_codec.h"
+#include "slam/scan_context_codec.h"
 
 namespace certislam::actors {
 namespace {
@@ -212,12 +213,18 @@ std::optional<slam::PointCloudPtr> DecodeCloudReply(const transport::Message& me
     return CloudOf(message, proto->cloud());
 }
 
-v1::ScanContextDescriptor ToProto(const slam::ScanContext& descriptor, const slam::PoseId& id) {
+v1::ScanContextDescriptor ToProto(const slam::ScanContext& descriptor, const slam::PoseId& id,
+                                  DescriptorWire wire) {
     v1::ScanContextDescriptor out;
     *out.mutable_pose_id() = ToProto(id);
     out.set_num_rings(static_cast<std::uint32_t>(descriptor.bins.rows()));
     out.set_num_sectors(static_cast<std::uint32_t>(descriptor.bins.cols()));
     out.set_max_range_m(static_cast<float>(descriptor.max_range_m));
+    if (wire == DescriptorWire::kCompact) {
+        const std::vector<std::uint8_t> bytes = slam::EncodeScanContextCompact(descriptor);
+        out.set_compact(bytes.data(), bytes.size());
+        return out;
+    }
     out.mutable_values()->Assign(descriptor.bins.data(),
                                  descriptor.bins.data() + descriptor.bins.size());
     out.mutable_ring_key()->Assign(descriptor.ring_key.data(),
@@ -229,6 +236,17 @@ std::optional<slam::ScanContext> FromProto(const v1::ScanContextDescriptor& desc
     const std::uint32_t rings = descriptor.num_rings();
     const std::uint32_t sectors = descriptor.num_sectors();
     if (rings < 1 || rings > 1024 || sectors < 2 || sectors > 4096) return std::nullopt;
+    if (!descriptor.compact().empty()) {
+        const std::string& packed = descriptor.compact();
+        auto decoded =
+            slam::DecodeScanContextCompact(std::vector<std::uint8_t>(packed.begin(), packed.end()));
+        if (!decoded || decoded->bins.rows() != static_cast<Eigen::Index>(rings) ||
+            decoded->bins.cols() != static_cast<Eigen::Index>(sectors) ||
+            !decoded->bins.allFinite()) {
+            return std::nullopt;
+        }
+        return decoded;
+    }
     if (static_cast<std::uint64_t>(descriptor.values_size()) != std::uint64_t{rings} * sectors ||
         static_cast<std::uint32_t>(descriptor.ring_key_size()) != rings) {
         return std::nullopt;

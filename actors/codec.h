@@ -58,10 +58,17 @@ transport::Message EncodeCloudReply(const v1::CloudReply& header_fields,
 std::optional<slam::PointCloudPtr> DecodeCloudReply(const transport::Message& message,
                                                     v1::CloudReply* reply);
 
+/// How a descriptor travels.
+enum class DescriptorWire {
+    kFloat32,  ///< every bin and the ring key as float (4.9 kB for 20 x 60)
+    kCompact,  ///< slam/scan_context_codec.h: 5 cm height steps, zstd (0.5-0.8 kB on real scans)
+};
+
 /// A Scan Context descriptor of keyframe `id` on the wire.
-v1::ScanContextDescriptor ToProto(const slam::ScanContext& descriptor, const slam::PoseId& id);
-/// The descriptor back (sector key recomputed); nullopt when sizes disagree or values are not
-/// finite.
+v1::ScanContextDescriptor ToProto(const slam::ScanContext& descriptor, const slam::PoseId& id,
+                                  DescriptorWire wire = DescriptorWire::kCompact);
+/// The descriptor back (either wire form; keys recomputed); nullopt when sizes disagree with
+/// num_rings x num_sectors, the compact bytes do not decode, or values are not finite.
 std::optional<slam::ScanContext> FromProto(const v1::ScanContextDescriptor& descriptor);
 
 /// A loop closure on the wire (kappa, tau in Information6; fitness as RMSE).

@@ -94,7 +94,7 @@ TEST(Codec, ScanContextRoundTripsAndRejectsWrongSizes) {
     const auto kf = MakeKeyframe(20000);
     const auto sc = slam::MakeScanContext(*kf.cloud, slam::ScanContextConfig{});
     std::string bytes;
-    ASSERT_TRUE(ToProto(sc, {1, 5}).SerializeToString(&bytes));
+    ASSERT_TRUE(ToProto(sc, {1, 5}, DescriptorWire::kFloat32).SerializeToString(&bytes));
     v1::ScanContextDescriptor parsed;
     ASSERT_TRUE(parsed.ParseFromString(bytes));
     const auto back = FromProto(parsed);
@@ -110,6 +110,38 @@ TEST(Codec, ScanContextRoundTripsAndRejectsWrongSizes) {
     ASSERT_TRUE(parsed.ParseFromString(bytes));
     parsed.set_values(3, std::nanf(""));
     EXPECT_FALSE(FromProto(parsed).has_value());
+}
+
+TEST(Codec, CompactScanContextIsSmallCloseAndRejectsForgedBytes) {
+    constexpr double kHalfStepM = 0.025 + 1e-6;  // 5 cm height steps
+    constexpr double kMaxDistanceChange = 0.01;  // slam/scan_context_codec's own bound
+    const auto kf = MakeKeyframe(20000);
+    const auto sc = slam::MakeScanContext(*kf.cloud, slam::ScanContextConfig{});
+    std::string compact_bytes;
+    std::string float_bytes;
+    ASSERT_TRUE(ToProto(sc, {1, 5}).SerializeToString(&compact_bytes));
+    ASSERT_TRUE(ToProto(sc, {1, 5}, DescriptorWire::kFloat32).SerializeToString(&float_bytes));
+    // A random synthetic cloud compresses least (real scans: 6-10x, tests/slam).
+    EXPECT_LT(compact_bytes.size() * 2, float_bytes.size());
+    v1::ScanContextDescriptor parsed;
+    ASSERT_TRUE(parsed.ParseFromString(compact_bytes));
+    EXPECT_EQ(parsed.values_size(), 0);
+    const auto back = FromProto(parsed);
+    ASSERT_TRUE(back.has_value());
+    ASSERT_EQ(back->bins.rows(), sc.bins.rows());
+    ASSERT_EQ(back->bins.cols(), sc.bins.cols());
+    EXPECT_LE((back->bins - sc.bins).cwiseAbs().maxCoeff(), kHalfStepM);
+    EXPECT_LT(slam::ScanContextDistance(*back, sc).distance, kMaxDistanceChange);
+
+    v1::ScanContextDescriptor wrong_size = parsed;
+    wrong_size.set_num_sectors(parsed.num_sectors() + 1);  // header disagrees with the bytes
+    EXPECT_FALSE(FromProto(wrong_size).has_value());
+    v1::ScanContextDescriptor truncated = parsed;
+    truncated.set_compact(parsed.compact().substr(0, parsed.compact().size() / 2));
+    EXPECT_FALSE(FromProto(truncated).has_value());
+    v1::ScanContextDescriptor garbage = parsed;
+    garbage.set_compact(std::string(64, '\x7f'));
+    EXPECT_FALSE(FromProto(garbage).has_value());
 }
 
 TEST(Codec, LoopClosureRoundTripsAndRejectsBadWeights) {

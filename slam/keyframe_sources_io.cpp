@@ -15,10 +15,7 @@ namespace {
 using Status = KeyframeSourceResult::Status;
 
 KeyframeSourceResult Fail(Status status, std::string error) {
-    KeyframeSourceResult r;
-    r.status = status;
-    r.error = std::move(error);
-    return r;
+    return KeyframeSourceResult::Failure(status, std::move(error));
 }
 
 // Numbers of one line; false (with *what) when a token is not a finite number.

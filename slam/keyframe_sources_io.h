@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "slam/keyframe.h"
@@ -31,6 +32,14 @@ struct KeyframeSourceResult {
 
     /// True when the source was read.
     bool ok() const { return status == Status::kOk; }
+
+    /// A failed read with `status` and "FILE[:LINE]: what was wrong".
+    static KeyframeSourceResult Failure(Status status, std::string error) {
+        KeyframeSourceResult r;
+        r.status = status;
+        r.error = std::move(error);
+        return r;
+    }
 };
 
 /// Options shared by the folder readers.

@@ -22,10 +22,7 @@ namespace {
 using Status = KeyframeSourceResult::Status;
 
 KeyframeSourceResult Fail(Status status, std::string error) {
-    KeyframeSourceResult r;
-    r.status = status;
-    r.error = std::move(error);
-    return r;
+    return KeyframeSourceResult::Failure(status, std::move(error));
 }
 
 struct StampedPose {

@@ -10,6 +10,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tests/bin/shell.h"
@@ -156,10 +157,18 @@ TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum)
 }
 
 TEST_F(Distributed, BadConfigurationFailsNamingTheField) {
-    std::ofstream(dir_ / "bad.json") << R"({"robots": [0, 1], "source": {"kind": "rosbag"}})";
-    const auto result = testing::Shell(Binary() + " run " + (dir_ / "bad.json").string() + " 2>&1");
-    EXPECT_EQ(result.exit_code, 1);
-    EXPECT_NE(result.out.find("source.kind"), std::string::npos) << result.out;
+    const std::pair<const char*, const char*> cases[] = {
+        {R"({"kind": "sonar"})", "source.kind"},    // no such source
+        {R"({"kind": "rosbag"})", "source.paths"},  // a bag per robot is required
+    };
+    for (const auto& [source, field] : cases) {
+        std::ofstream(dir_ / "bad.json")
+            << std::string(R"({"robots": [0, 1], "source": )") + source + "}";
+        const auto result =
+            testing::Shell(Binary() + " run " + (dir_ / "bad.json").string() + " 2>&1");
+        EXPECT_EQ(result.exit_code, 1) << source;
+        EXPECT_NE(result.out.find(field), std::string::npos) << result.out;
+    }
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
-// Loop matcher: brute-force Scan Context over the (strided) pairs this robot owns, cloud
-// requests to lower robots, GICP verification, PCM, loop closures (and withdrawals) out.
+// Loop matcher: brute-force Scan Context over the (strided) pairs this robot owns, gated cloud
+// requests to lower robots (replies downsampled at the registration voxel), GICP verification,
+// PCM, loop closures (and withdrawals) out.
 #include "actors/loop_matcher_actor.h"
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include "actors/codec.h"
 #include "actors/descriptor_actor.h"
 #include "certislam/v1/control.pb.h"
+#include "slam/downsample.h"
 
 namespace certislam::actors {
 namespace {
@@ -21,6 +23,13 @@ void Require(bool ok, const std::string& field, double value, const std::string&
     }
 }
 
+slam::CloudRequestGateConfig GateConfig(const LoopMatcherConfig& config) {
+    slam::CloudRequestGateConfig gate;
+    gate.max_sc_distance = config.max_sc_distance;
+    gate.place_window = config.place_window;
+    return gate;
+}
+
 }  // namespace
 
 void LoopMatcherConfig::Validate() const {
@@ -30,6 +39,7 @@ void LoopMatcherConfig::Validate() const {
     Require(min_intra_gap >= 1, "min_intra_gap", min_intra_gap, "must be >= 1");
     Require(request_retry.count() > 0, "request_retry", request_retry.count(), "must be > 0");
     Require(max_rmse_m > 0, "max_rmse_m", max_rmse_m, "must be > 0");
+    Require(place_window >= 0, "place_window", place_window, "must be >= 0");
     pcm.Validate();
     registration.Validate();
 }
@@ -56,7 +66,8 @@ LoopMatcherActor::LoopMatcherActor(zmq::context_t& context, TeamWiring wiring,
                                    LoopMatcherConfig config)
     : NodeActor("loop_matcher", context, std::move(wiring)),
       config_(config),
-      pcm_((config.Validate(), config.pcm)) {}
+      gate_((config.Validate(), GateConfig(config))),
+      pcm_(config.pcm) {}
 
 void LoopMatcherActor::OnStart() {
     loops_out_ = &OpenServer(Edge::kLoops);
@@ -125,35 +136,64 @@ bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
         const auto& q = own_new ? *sc : other_sc;
         const auto& c = own_new ? other_sc : *sc;
         const auto best = slam::ScanContextDistance(q, c);
-        if (best.distance < config_.max_sc_distance) Consider(query, match, best.yaw_rad);
+        if (best.distance < config_.max_sc_distance) {
+            Consider({query, match, best.distance, best.yaw_rad});
+        }
     }
     descriptors_.emplace(*id, std::move(*sc));
     return true;
 }
 
-void LoopMatcherActor::Consider(const slam::PoseId& query, const slam::PoseId& match,
-                                double yaw_rad) {
-    const Pending p{match, query, yaw_rad, std::chrono::steady_clock::now()};
-    if (!own_clouds_.count(query.index) ||
-        (match.robot == RobotId() && !own_clouds_.count(match.index))) {
-        deferred_.push_back(p);
+void LoopMatcherActor::Consider(const slam::MissionCandidate& c) {
+    if (!own_clouds_.count(c.query.index) ||
+        (c.match.robot == RobotId() && !own_clouds_.count(c.match.index))) {
+        deferred_.push_back({c, {}});
         return;
     }
-    if (match.robot == RobotId()) {
-        Verify(query, match, yaw_rad, *own_clouds_.at(match.index));
+    if (c.match.robot == RobotId()) {
+        Verify(c, *own_clouds_.at(c.match.index));
         return;
     }
+    switch (gate_.Admit(c)) {
+        case slam::CloudRequestGate::Decision::kSkip:
+            ++skipped_;
+            return;
+        case slam::CloudRequestGate::Decision::kRegister:
+            if (const auto it = peer_clouds_.find(c.match); it != peer_clouds_.end()) {
+                Verify(c, *it->second);
+            } else {
+                waiting_[c.match].push_back(c);  // its cloud is on the way
+            }
+            return;
+        case slam::CloudRequestGate::Decision::kFetch:
+            break;
+    }
+    waiting_[c.match].push_back(c);
     const std::uint64_t id = ++next_request_;
-    pending_[id] = p;
-    RequestCloud(id, p);
+    pending_[id] = {c, std::chrono::steady_clock::now()};
+    ++clouds_requested_;
+    RequestCloud(id, pending_[id]);
 }
 
 void LoopMatcherActor::RequestCloud(std::uint64_t id, const Pending& p) {
     v1::CloudRequest request;
     *request.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-    *request.mutable_pose_id() = ToProto(p.match);
+    *request.mutable_pose_id() = ToProto(p.candidate.match);
     request.set_request_id(id);
-    Send(*cloud_clients_.at(p.match.robot), transport::Pack(request), true);
+    Send(*cloud_clients_.at(p.candidate.match.robot), transport::Pack(request), true);
+}
+
+slam::PointCloudPtr LoopMatcherActor::ReplyCloud(int index) {
+    const auto own = own_clouds_.find(index);
+    if (own == own_clouds_.end()) return nullptr;
+    if (!config_.downsample_replies) return own->second;
+    // The requester registers at this voxel anyway: a finer cloud would cross for nothing.
+    auto& reply = reply_clouds_[index];
+    if (!reply) {
+        reply = std::make_shared<slam::PointCloud>(
+            slam::VoxelDownsample(*own->second, config_.registration.voxel_m));
+    }
+    return reply;
 }
 
 bool LoopMatcherActor::OnCloudRequest(const transport::Message& m) {
@@ -165,8 +205,7 @@ bool LoopMatcherActor::OnCloudRequest(const transport::Message& m) {
     *reply.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     *reply.mutable_pose_id() = request->pose_id();
     reply.set_request_id(request->request_id());
-    slam::PointCloudPtr cloud;
-    if (id->robot == RobotId() && own_clouds_.count(id->index)) cloud = own_clouds_.at(id->index);
+    const slam::PointCloudPtr cloud = id->robot == RobotId() ? ReplyCloud(id->index) : nullptr;
     if (const auto it = own_odometry_.find(id->index);
         id->robot == RobotId() && it != own_odometry_.end()) {
         *reply.mutable_t_odom_base() = ToProto(it->second.T_odom);  // for the requester's PCM
@@ -185,22 +224,27 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
     if (!cloud) return transport::Unpack<v1::CloudReply>(m).has_value();  // not found: retried
     const auto it = pending_.find(reply.request_id());
     if (it == pending_.end()) return true;  // a duplicate reply to a retried request
-    const Pending p = it->second;
+    const slam::PoseId match = it->second.candidate.match;
     pending_.erase(it);
     const auto T_odom = reply.has_t_odom_base() ? FromProto(reply.t_odom_base()) : std::nullopt;
     if (T_odom && std::isfinite(reply.travelled_m())) {
-        pcm_.SetOdometry(p.match, {*T_odom, reply.travelled_m()});
+        pcm_.SetOdometry(match, {*T_odom, reply.travelled_m()});
     }
-    Verify(p.query, p.match, p.yaw_rad, **cloud);
+    const slam::PointCloudPtr kept = peer_clouds_[match] = *cloud;
+    const auto waiting = std::move(waiting_[match]);
+    waiting_.erase(match);
+    for (const auto& c : waiting) Verify(c, *kept);
     return true;
 }
 
-void LoopMatcherActor::Verify(const slam::PoseId& query, const slam::PoseId& match, double yaw_rad,
+void LoopMatcherActor::Verify(const slam::MissionCandidate& c,
                               const slam::PointCloud& match_cloud) {
+    const slam::PoseId query = c.query, match = c.match;
     const auto result = slam::RegisterScans(*own_clouds_.at(query.index), match_cloud,
-                                            slam::YawGuess(yaw_rad), config_.registration);
+                                            slam::YawGuess(c.yaw_rad), config_.registration);
     if (!result.accepted() || result.inlier_rmse_m > config_.max_rmse_m) {
         ++rejected_;
+        if (match.robot != RobotId()) gate_.Failed(c);  // the place is open again
         return;
     }
     ++verified_;
@@ -253,7 +297,7 @@ void LoopMatcherActor::Reconcile() {
 void LoopMatcherActor::Tick() {
     auto deferred = std::move(deferred_);
     deferred_.clear();
-    for (const auto& p : deferred) Consider(p.query, p.match, p.yaw_rad);
+    for (const auto& p : deferred) Consider(p.candidate);
     const auto now = std::chrono::steady_clock::now();
     for (auto& [id, p] : pending_) {
         if (now - p.sent < config_.request_retry) continue;

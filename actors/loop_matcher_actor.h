@@ -1,9 +1,11 @@
 // Loop matcher actor: Scan Context candidates between this robot's keyframes and its own earlier
 // ones or lower robots' (each pair checked once, by the higher robot, when the later of the two
 // descriptors arrives: the loop set does not depend on arrival order); the lower robot's cloud
-// is requested only for candidates; GICP seeded by the Scan Context yaw verifies; verified loops
-// pass pairwise consistency maximisation (re-evaluated on each new loop: a loop that drops out of
-// the consistent set is withdrawn) and go to both robots' solvers.
+// is requested only for candidates the cloud-request gate admits (one open request per place and
+// robot pair, a cloud fetched once) and travels downsampled at the registration voxel; GICP seeded
+// by the Scan Context yaw verifies; verified loops pass pairwise consistency maximisation
+// (re-evaluated on each new loop: a loop that drops out of the consistent set is withdrawn) and go
+// to both robots' solvers.
 #pragma once
 
 #include <atomic>
@@ -17,6 +19,7 @@
 #include "actors/loop_matcher_actor_pcm.h"
 #include "actors/node_actor.h"
 #include "certislam/v1/loop_closure.pb.h"
+#include "slam/cloud_request_gate.h"
 #include "slam/loop_closure.h"
 #include "slam/pcm.h"
 #include "slam/registration.h"
@@ -38,6 +41,11 @@ struct LoopMatcherConfig {
     slam::PcmConfig pcm;           ///< consistency test and clique search
     slam::RegistrationConfig registration;          ///< verification
     std::chrono::milliseconds request_retry{1000};  ///< cloud requests re-sent after this, > 0
+    /// Keyframes that make one place for the cloud-request gate (slam/cloud_request_gate.h),
+    /// >= 0: an inter-robot candidate within this window of an admitted one on both robots is
+    /// skipped. 0: every candidate is verified (each peer cloud is still fetched only once).
+    int place_window = 0;
+    bool downsample_replies = true;  ///< cloud replies downsampled at registration.voxel_m
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -65,6 +73,10 @@ class LoopMatcherActor final : public NodeActor {
     int Verified() const { return verified_.load(); }
     /// Withdrawals sent so far (loops that dropped out of the consistent set).
     int Withdrawn() const { return withdrawn_.load(); }
+    /// Inter-robot candidates the cloud-request gate skipped so far.
+    int Skipped() const { return skipped_.load(); }
+    /// Peer clouds requested so far (distinct keyframes; retries not counted).
+    int CloudsRequested() const { return clouds_requested_.load(); }
     /// True once the end-of-loops marker went out.
     bool Ended() const { return ended_.load(); }
 
@@ -74,19 +86,17 @@ class LoopMatcherActor final : public NodeActor {
 
   private:
     struct Pending {
-        slam::PoseId match;  ///< lower robot's keyframe whose cloud is awaited
-        slam::PoseId query;  ///< own keyframe
-        double yaw_rad = 0.0;
+        slam::MissionCandidate candidate;  ///< query: own keyframe; match: the cloud's keyframe
         std::chrono::steady_clock::time_point sent;
     };
 
     bool OnDescriptor(const transport::Message& m);
     bool OnCloudRequest(const transport::Message& m);
     bool OnCloudReply(const transport::Message& m);
-    void Consider(const slam::PoseId& query, const slam::PoseId& match, double yaw_rad);
-    void Verify(const slam::PoseId& query, const slam::PoseId& match, double yaw_rad,
-                const slam::PointCloud& match_cloud);
+    void Consider(const slam::MissionCandidate& candidate);
+    void Verify(const slam::MissionCandidate& candidate, const slam::PointCloud& match_cloud);
     void RequestCloud(std::uint64_t id, const Pending& p);
+    slam::PointCloudPtr ReplyCloud(int index);
     void OnOwnKeyframe(const slam::Keyframe& keyframe);
     void SendLoop(v1::LoopClosure proto, bool inter_robot);
     void Reconcile();
@@ -95,10 +105,14 @@ class LoopMatcherActor final : public NodeActor {
     LoopMatcherConfig config_;
     transport::Endpoint* loops_out_ = nullptr;
     transport::Endpoint* clouds_server_ = nullptr;
-    std::map<int, transport::Endpoint*> cloud_clients_;      ///< lower robot -> dealer
-    std::map<int, slam::PointCloudPtr> own_clouds_;          ///< own keyframe -> cloud
+    std::map<int, transport::Endpoint*> cloud_clients_;        ///< lower robot -> dealer
+    std::map<int, slam::PointCloudPtr> own_clouds_;            ///< own keyframe -> cloud
+    std::map<int, slam::PointCloudPtr> reply_clouds_;          ///< own keyframe -> as sent
+    std::map<slam::PoseId, slam::PointCloudPtr> peer_clouds_;  ///< fetched, kept (gate: once)
+    std::map<slam::PoseId, std::vector<slam::MissionCandidate>> waiting_;  ///< on a fetch
+    slam::CloudRequestGate gate_;
     std::map<slam::PoseId, slam::ScanContext> descriptors_;  ///< own and lower robots'
-    std::map<std::uint64_t, Pending> pending_;               ///< request id -> candidate
+    std::map<std::uint64_t, Pending> pending_;  ///< request id -> candidate that fetched
     std::vector<Pending> deferred_;  ///< own clouds not yet arrived (descriptor came first)
     std::set<int> ended_streams_;    ///< robots whose stream ended
     std::uint64_t next_request_ = 0;
@@ -111,6 +125,8 @@ class LoopMatcherActor final : public NodeActor {
     std::atomic<int> rejected_{0};
     std::atomic<int> verified_{0};
     std::atomic<int> withdrawn_{0};
+    std::atomic<int> skipped_{0};
+    std::atomic<int> clouds_requested_{0};
     std::atomic<bool> ended_{false};
 };
 

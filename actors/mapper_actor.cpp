@@ -1,6 +1,6 @@
 // TSDF mapper: keyframes in -> submaps; solver trajectories in -> re-anchoring; own submaps out
-// to peers (bytes when their voxels changed, anchor pose only when they just moved); peers'
-// submaps in -> the same map.
+// to the peers that fuse them (bytes once a submap is closed or the keyframes paused, anchor pose
+// only when it just moved); peers' submaps in -> the same map.
 #include "actors/mapper_actor.h"
 
 #include <future>
@@ -10,6 +10,8 @@
 #include <string_view>
 
 #include "actors/codec.h"
+#include "actors/ingest_actor.h"
+#include "certislam/v1/control.pb.h"
 #include "certislam/v1/map.pb.h"
 
 namespace certislam::actors {
@@ -32,6 +34,11 @@ void MapperConfig::Validate() const {
     if (publish_period.count() <= 0) {
         throw std::invalid_argument("MapperConfig.publish_period = " +
                                     std::to_string(publish_period.count()) + " ms: must be > 0");
+    }
+    if (active_submap_quiet.count() < 0) {
+        throw std::invalid_argument(
+            "MapperConfig.active_submap_quiet = " + std::to_string(active_submap_quiet.count()) +
+            " ms: must be >= 0");
     }
 }
 
@@ -70,7 +77,7 @@ void MapperActor::OnStart() {
     OpenClient(Edge::kKeyframes, RobotId());
     OpenClient(Edge::kBundle, RobotId());  // the solver's trajectory closes each bundle
     for (int r : Wiring().robots) {
-        if (r != RobotId()) OpenClient(Edge::kMap, r);
+        if (r != RobotId() && FusesPeers()) OpenClient(Edge::kMap, r);
     }
     On(v1::Keyframe::descriptor()->full_name(),
        [this](const transport::Message& m) { return OnKeyframe(m); });
@@ -78,12 +85,26 @@ void MapperActor::OnStart() {
        [this](const transport::Message& m) { return OnTrajectory(m); });
     On(v1::MapUpdate::descriptor()->full_name(),
        [this](const transport::Message& m) { return OnMapUpdate(m); });
+    On(v1::Shutdown::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnShutdown(m); });
     Every(config_.publish_period, [this] { Publish(); });
 }
 
 MapperStats MapperActor::Stats() const {
     std::lock_guard lock(stats_mutex_);
     return stats_;
+}
+
+bool MapperActor::FusesPeers() const {
+    switch (config_.team_map) {
+        case TeamMap::kAll:
+            return true;
+        case TeamMap::kNone:
+            return false;
+        case TeamMap::kAnchor:
+            return RobotId() == Wiring().robots.front();
+    }
+    return false;
 }
 
 std::optional<Eigen::Isometry3d> MapperActor::Estimate(int index) const {
@@ -104,8 +125,10 @@ bool MapperActor::OnKeyframe(const transport::Message& m) {
     odometry_[keyframe->index] = keyframe->T_odom_sensor;
     const auto result = map_.Insert(keyframe->index, *Estimate(keyframe->index), *keyframe->cloud);
     if (result.status == slam::TsdfMapInsertResult::Status::kIntegrated) {
-        dirty_.insert(map_.submaps()[result.submap].id);
+        active_ = map_.submaps()[result.submap].id;
+        dirty_.insert(*active_);
     }
+    last_keyframe_ = std::chrono::steady_clock::now();
     UpdateStats();
     std::lock_guard lock(stats_mutex_);
     ++stats_.integrated;
@@ -136,6 +159,15 @@ bool MapperActor::OnTrajectory(const transport::Message& m) {
     std::lock_guard lock(stats_mutex_);
     ++stats_.trajectory_updates;
     stats_.submaps_moved += moved;
+    return true;
+}
+
+bool MapperActor::OnShutdown(const transport::Message& m) {
+    const auto end = transport::Unpack<v1::Shutdown>(m);
+    if (!end) return false;
+    if (end->reason() == kEndOfKeyframes && int(end->header().robot_id()) == RobotId()) {
+        keyframes_ended_ = true;  // the active submap is complete: it may go out now
+    }
     return true;
 }
 
@@ -187,10 +219,17 @@ void MapperActor::Publish() {
         }
         seen_subscribers_ = subscribers;
     }
-    if (subscribers == 0) return;  // nobody listens yet: the changes wait
+    if (subscribers == 0) return;  // nobody listens (yet): the changes wait
+    // The growing submap would be re-sent whole on every tick: it waits until it is closed (a
+    // later submap became active) or the keyframes ended or paused.
+    const bool active_ready =
+        keyframes_ended_ ||
+        std::chrono::steady_clock::now() - last_keyframe_ >= config_.active_submap_quiet;
     std::uint64_t bytes = 0;
+    int sends = 0, pose_only = 0;
     for (const auto& s : map_.submaps()) {
-        const bool dirty = dirty_.count(s.id) > 0, moved = moved_.count(s.id) > 0;
+        const bool dirty = dirty_.count(s.id) > 0 && (s.id != active_ || active_ready);
+        const bool moved = moved_.count(s.id) > 0;
         if (s.id.robot != RobotId() || (!dirty && !moved)) continue;
         v1::MapUpdate update;
         *update.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
@@ -208,13 +247,16 @@ void MapperActor::Publish() {
             update.set_uncompressed_byte_length(payload.size());
             frames.push_back(transport::SharedBuffer::Copy(payload.data(), payload.size()));
             bytes += payload.size();
+            dirty_.erase(s.id);
         }
+        ++(dirty ? sends : pose_only);
         Send(*map_out_, transport::Pack(update, std::move(frames)), true);
     }
-    dirty_.clear();
     moved_.clear();
     std::lock_guard lock(stats_mutex_);
     stats_.submap_bytes_sent += bytes;
+    stats_.submap_sends += sends;
+    stats_.pose_only_sends += pose_only;
 }
 
 void MapperActor::UpdateStats() {

@@ -1,7 +1,10 @@
 // TSDF mapper actor: integrates this robot's keyframes into submaps anchored to keyframes, moves
 // them (no re-integration) when the solver's trajectory changes, sends its submaps to the peers
 // as compressed bytes (a moved submap as its new anchor pose only) and fuses the peers' submaps
-// into the same map, so every robot can mesh the team's map in the common frame.
+// into the same map, so the robots that keep the team's map can mesh it in the common frame.
+// Bandwidth: a submap's bytes go out once it is closed (or the keyframes paused or ended), a
+// submap that only moved goes out as its anchor pose, and only to peers that subscribed (the
+// robots whose MapperConfig::team_map says they fuse their peers' submaps).
 #pragma once
 
 #include <Eigen/Geometry>
@@ -20,11 +23,24 @@
 
 namespace certislam::actors {
 
+/// Which robots of the team fuse their peers' submaps (the others map only their own, and
+/// nothing is sent to them: a publisher with no subscriber sends nothing).
+enum class TeamMap {
+    kAnchor,  ///< only the team's anchor (lowest robot id) keeps the team's map
+    kAll,     ///< every robot keeps the team's map
+    kNone,    ///< every robot keeps only its own map
+};
+
 /// Settings of the mapper.
 struct MapperConfig {
     slam::TsdfMapConfig map;                        ///< submaps and their TSDF volumes
     std::chrono::milliseconds publish_period{500};  ///< changed submaps out this often, > 0
-    bool share = true;                              ///< send own submaps to the peers
+    bool share = true;                              ///< send own submaps to the peers that ask
+    TeamMap team_map = TeamMap::kAnchor;            ///< which robots fuse their peers' submaps
+    /// The active (still growing) submap's bytes go out only when it is closed, the keyframes
+    /// ended, or no keyframe came for this long (>= 0): a growing submap is not re-sent whole
+    /// on every publish tick.
+    std::chrono::milliseconds active_submap_quiet{1000};
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -45,6 +61,8 @@ struct MapperStats {
     int trajectory_updates = 0;           ///< solver trajectories applied
     int submaps_moved = 0;                ///< re-anchorings of own submaps (sum over updates)
     int peer_moves = 0;                   ///< peers' pose-only updates applied
+    int submap_sends = 0;                 ///< own submaps sent with their bytes
+    int pose_only_sends = 0;              ///< own submaps sent as their anchor pose only
     std::uint64_t submap_bytes_sent = 0;  ///< compressed submap payloads sent to peers
 };
 
@@ -56,6 +74,8 @@ class MapperActor final : public NodeActor {
 
     /// The counters now (thread-safe).
     MapperStats Stats() const;
+    /// True when this robot fuses its peers' submaps (MapperConfig::team_map).
+    bool FusesPeers() const;
     /// Every submap (own and peers') fused into one volume of voxel `voxel_m` in the common frame
     /// and meshed. Runs on the actor's thread while it runs (waits for it), directly otherwise.
     slam::TriangleMesh FusedMesh(double voxel_m);
@@ -68,6 +88,7 @@ class MapperActor final : public NodeActor {
     bool OnKeyframe(const transport::Message& m);
     bool OnTrajectory(const transport::Message& m);
     bool OnMapUpdate(const transport::Message& m);
+    bool OnShutdown(const transport::Message& m);
     std::optional<Eigen::Isometry3d> Estimate(int index) const;
     void Publish();
     void UpdateStats();
@@ -81,7 +102,10 @@ class MapperActor final : public NodeActor {
     std::set<slam::SubmapId> dirty_;             ///< own submaps whose voxels changed
     std::set<slam::SubmapId> moved_;             ///< own submaps whose anchor pose changed
     std::set<slam::SubmapId> peers_;             ///< peers' submaps received
-    std::size_t seen_subscribers_ = 0;           ///< map subscribers at the last publish
+    std::optional<slam::SubmapId> active_;       ///< own submap keyframes go into now
+    std::chrono::steady_clock::time_point last_keyframe_;  ///< last own keyframe fused
+    bool keyframes_ended_ = false;                         ///< the ingest's end marker came
+    std::size_t seen_subscribers_ = 0;                     ///< map subscribers at the last publish
     mutable std::mutex stats_mutex_;
     MapperStats stats_;
 };

@@ -57,9 +57,18 @@ bool RobotNode::Done() const {
 }
 
 std::uint64_t RobotNode::BytesSentToPeers() const {
-    return descriptor_->BytesSentToPeers() + matcher_->BytesSentToPeers() +
-           solver_->BytesSentToPeers() + certifier_->BytesSentToPeers() +
-           (mapper_ ? mapper_->BytesSentToPeers() : 0);
+    std::uint64_t total = 0;
+    for (const auto& [actor, bytes] : BytesSentToPeersByActor()) total += bytes;
+    return total;
+}
+
+std::map<std::string, std::uint64_t> RobotNode::BytesSentToPeersByActor() const {
+    std::map<std::string, std::uint64_t> out{{"descriptor", descriptor_->BytesSentToPeers()},
+                                             {"loop_matcher", matcher_->BytesSentToPeers()},
+                                             {"solver", solver_->BytesSentToPeers()},
+                                             {"certifier", certifier_->BytesSentToPeers()}};
+    if (mapper_) out["mapper"] = mapper_->BytesSentToPeers();
+    return out;
 }
 
 }  // namespace certislam::actors

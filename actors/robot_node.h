@@ -4,7 +4,9 @@
 #pragma once
 
 #include <chrono>
+#include <map>
 #include <memory>
+#include <string>
 
 #include "actors/certifier_actor.h"
 #include "actors/descriptor_actor.h"
@@ -30,7 +32,7 @@ struct RobotNodeConfig {
     void Validate() const;
 };
 
-/// The five actors of one robot.
+/// The six actors of one robot (the mapper only with mapping on and map addresses).
 class RobotNode {
   public:
     /// `context` must outlive the node (shared by all robots of a process for inproc).
@@ -50,6 +52,8 @@ class RobotNode {
     bool Done() const;
     /// Bytes this robot's actors sent on edges that reach other robots.
     std::uint64_t BytesSentToPeers() const;
+    /// The same, per actor ("descriptor", "loop_matcher", "solver", "certifier", "mapper").
+    std::map<std::string, std::uint64_t> BytesSentToPeersByActor() const;
     /// Loops this robot's matcher found.
     int LoopsFound() const { return matcher_->LoopsFound(); }
     /// Loops this robot's matcher withdrew (they dropped out of its consistent set).

@@ -1,17 +1,47 @@
 // `certislam robot CONFIG --id K [--out DIR] [--json]`: one robot's actor graph in this process;
 // its peers are other processes reached over tcp, with CURVE when the configuration names keys
-// (distributed multi-host mode).
+// (distributed multi-host mode). With mapping on, its TSDF mapper's mesh goes to
+// DIR/robot<K>.mesh.ply (the anchor's holds every robot's submaps; see mapping.team_map).
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
 #include <thread>
 
 #include "bin/command.h"
+#include "bin/demo_output.h"
 #include "bin/team_config.h"
 #include "transport/curve.h"
 
 namespace certislam::bin {
 namespace {
+
+/// Meshes the mapper's submaps (own and, where it fuses them, the peers') and writes the PLY
+/// into `out_dir`; returns what the report says about it (null without a mapper).
+nlohmann::json WriteMesh(actors::RobotNode& node, const actors::RobotNodeConfig& config, int id,
+                         const std::string& out_dir) {
+    actors::MapperActor* mapper = node.Mapper();
+    if (!mapper) return nullptr;
+    // Two publish periods: the peers' last re-anchorings (pose-only updates) arrive.
+    std::this_thread::sleep_for(2 * config.mapper.publish_period);
+    const slam::TriangleMesh mesh = mapper->FusedMesh(config.mapper.map.tsdf.voxel_size_m);
+    const actors::MapperStats stats = mapper->Stats();
+    nlohmann::json out{{"vertices", mesh.vertices.size()},
+                       {"triangles", mesh.triangles.size()},
+                       {"own_submaps", stats.own_submaps},
+                       {"peer_submaps", stats.peer_submaps},
+                       {"submap_sends", stats.submap_sends},
+                       {"pose_only_sends", stats.pose_only_sends},
+                       {"submap_bytes_sent", stats.submap_bytes_sent}};
+    if (out_dir.empty()) return out;
+    std::filesystem::create_directories(out_dir);
+    const std::string path = out_dir + "/robot" + std::to_string(id) + ".mesh.ply";
+    std::string error;
+    if (!WriteMeshPly(path, mesh, &error)) throw std::runtime_error(error);
+    out["path"] = path;
+    return out;
+}
 
 int RunRobot(int argc, char** argv) {
     CLI::App app{"One robot of a configuration; peers over tcp (CURVE with keys)"};
@@ -42,7 +72,8 @@ int RunRobot(int argc, char** argv) {
             for (const auto& [robot, key] : wiring.public_keys) allowed[key] = robot;
             zap = std::make_unique<transport::ZapAuthenticator>(context, allowed);
         }
-        actors::RobotNode node(context, wiring, source.For(id), NodeConfigFor(config, id));
+        const actors::RobotNodeConfig node_config = NodeConfigFor(config, id);
+        actors::RobotNode node(context, wiring, source.For(id), node_config);
         node.Start();
         const auto deadline = start + std::chrono::duration<double>(timeout_s);
         bool done = false;
@@ -54,10 +85,14 @@ int RunRobot(int argc, char** argv) {
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const auto snapshot = node.Snapshot();
         const auto bytes = node.BytesSentToPeers();
+        const auto bytes_by_actor = node.BytesSentToPeersByActor();
+        const nlohmann::json mesh = WriteMesh(node, node_config, id, out_dir);
         node.Stop();
-        const std::string report =
-            WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds);
-        std::printf("%s\n", report.c_str());
+        auto report = nlohmann::json::parse(
+            WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds));
+        report["bytes_sent_by_actor"] = bytes_by_actor;
+        if (!mesh.is_null()) report["mesh"] = mesh;
+        std::printf("%s\n", report.dump(2).c_str());
         if (!json) std::printf("%s\n", done ? "certified" : "TIMED OUT");
         return done ? 0 : 2;
     } catch (const std::exception& e) {

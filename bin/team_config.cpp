@@ -48,11 +48,31 @@ void ReadMatcher(const json& j, actors::RobotNodeConfig* node) {
     Read(j, "query_stride", &node->matcher.query_stride);
     Read(j, "min_intra_gap", &node->matcher.min_intra_gap);
     Read(j, "intra_robot", &node->matcher.intra_robot);
+    Read(j, "place_window", &node->matcher.place_window);
+    Read(j, "downsample_replies", &node->matcher.downsample_replies);
     if (j.contains("registration")) {
         const json& r = j.at("registration");
         Read(r, "voxel_m", &node->matcher.registration.voxel_m);
         Read(r, "min_fitness", &node->matcher.registration.min_fitness);
         Read(r, "max_correspondence_m", &node->matcher.registration.max_correspondence_m);
+    }
+}
+
+void ReadMapping(const json& j, const std::string& path, actors::RobotNodeConfig* node) {
+    Read(j, "enabled", &node->mapping);
+    Read(j, "voxel_m", &node->mapper.map.tsdf.voxel_size_m);
+    Read(j, "submap_distance_m", &node->mapper.map.submap_distance_m);
+    Read(j, "share_submaps", &node->mapper.share);
+    const std::string team_map = j.value("team_map", "anchor");
+    if (team_map == "anchor") {
+        node->mapper.team_map = actors::TeamMap::kAnchor;
+    } else if (team_map == "all") {
+        node->mapper.team_map = actors::TeamMap::kAll;
+    } else if (team_map == "none") {
+        node->mapper.team_map = actors::TeamMap::kNone;
+    } else {
+        throw std::runtime_error(path + ": mapping.team_map: \"" + team_map +
+                                 "\" is not anchor, all or none");
     }
 }
 
@@ -124,6 +144,7 @@ TeamConfig LoadTeamConfig(const std::string& path) {
         if (j.contains("solver")) ReadSolver(j.at("solver"), &config.node);
         if (j.contains("matcher")) ReadMatcher(j.at("matcher"), &config.node);
         if (j.contains("certifier")) ReadCertifier(j.at("certifier"), path, &config.node);
+        if (j.contains("mapping")) ReadMapping(j.at("mapping"), path, &config.node);
         if (j.contains("network")) {
             ReadNetwork(j.at("network"), std::filesystem::path(path).parent_path().string(),
                         &config);
@@ -163,7 +184,8 @@ actors::TeamWiring TcpWiring(const TeamConfig& config, int robot) {
     wiring.robots = config.robots;
     const actors::Edge edges[] = {actors::Edge::kDescriptors, actors::Edge::kLoops,
                                   actors::Edge::kClouds,      actors::Edge::kPoses,
-                                  actors::Edge::kBundle,      actors::Edge::kCertify};
+                                  actors::Edge::kBundle,      actors::Edge::kCertify,
+                                  actors::Edge::kMap};
     bool curve = true;
     for (int r : config.robots) {
         if (!config.network.count(r) || config.network.at(r).base_port <= 0) {

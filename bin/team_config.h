@@ -16,7 +16,7 @@ namespace certislam::bin {
 /// One robot's network identity (robot mode).
 struct RobotEndpointConfig {
     std::string host = "127.0.0.1";  ///< address peers connect to ("*" binds all interfaces)
-    int base_port = 0;               ///< edges on base_port .. base_port + 6
+    int base_port = 0;               ///< edges on base_port + 1 .. base_port + 7 (map last)
     std::string public_key;          ///< PREFIX.pub of `certislam keygen` (empty: no CURVE)
     std::string secret_key;          ///< PREFIX.key, read only by the robot itself
 };

@@ -1,9 +1,12 @@
 // Distributed mode equals local mode: the same small simulated two-robot mission run by
 // `certislam run` (one process, inproc) and by two `certislam robot` processes over tcp loopback
-// with CURVE keys from `certislam keygen` gives the same trajectories within 1e-6, certified.
+// with CURVE keys from `certislam keygen` gives the same trajectories within 1e-6, certified,
+// with the TSDF mappers running in both modes: robot 0's mesh (its own and robot 1's submaps, sent
+// over tcp) lies within sensor range of the trajectories.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <Eigen/Core>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -20,6 +23,8 @@ namespace {
 
 constexpr double kEqualTolerance = 1e-6;  ///< metres and quaternion components
 constexpr int kKeyframes = 45;
+constexpr double kSensorRange_m = 90.0;  ///< the simulator's LiDAR max range (SimulatorConfig)
+constexpr double kMeshSlack_m = 1.0;     ///< marching cubes / truncation band beyond a hit
 
 std::string Binary() { return CERTISLAM_BINARY; }
 
@@ -53,6 +58,41 @@ double MaxDifference(const std::string& a_path, const std::string& b_path) {
     return worst;
 }
 
+/// Vertices of a binary PLY written by `certislam robot` (float32 x y z first); empty on error.
+std::vector<Eigen::Vector3d> ReadPlyVertices(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::size_t count = 0;
+    for (std::string line; std::getline(in, line) && line != "end_header";) {
+        if (line.rfind("element vertex ", 0) == 0) count = std::stoul(line.substr(15));
+    }
+    std::vector<Eigen::Vector3d> out;
+    for (std::size_t i = 0; i < count && in; ++i) {
+        float xyz[3];
+        in.read(reinterpret_cast<char*>(xyz), sizeof(xyz));
+        if (in) out.emplace_back(xyz[0], xyz[1], xyz[2]);
+    }
+    return out;
+}
+
+/// Largest distance from a mesh vertex to the nearest keyframe position of the TUM files.
+double FarthestFromTrajectories(const std::vector<Eigen::Vector3d>& vertices,
+                                const std::vector<std::string>& tum_paths) {
+    std::vector<Eigen::Vector3d> positions;
+    for (const auto& path : tum_paths) {
+        for (const auto& row : ReadTum(path)) {
+            if (row.size() == 8) positions.emplace_back(row[1], row[2], row[3]);
+        }
+    }
+    if (positions.empty()) return INFINITY;
+    double worst = 0.0;
+    for (const auto& v : vertices) {
+        double nearest = INFINITY;
+        for (const auto& p : positions) nearest = std::min(nearest, (v - p).norm());
+        worst = std::max(worst, nearest);
+    }
+    return worst;
+}
+
 class Distributed : public ::testing::Test {
   protected:
     void SetUp() override {
@@ -72,6 +112,7 @@ class Distributed : public ::testing::Test {
             << kKeyframes << R"(},
   "solver": {"rank": 5, "rel_grad_tol": 1e-9},
   "matcher": {"query_stride": 3},
+  "mapping": {"voxel_m": 0.4},
   "network": {
     "0": {"host": "127.0.0.1", "base_port": )"
             << base << R"(, "public_key": "robot0.pub", "secret_key": "robot0.key"},
@@ -118,6 +159,19 @@ TEST_F(Distributed, TwoRobotProcessesOverTcpEqualTheSingleProcessRun) {
             kEqualTolerance)
             << name;
     }
+
+    // Robot 0 (the anchor) fused its own submaps and robot 1's; robot 1 sent each of its
+    // submaps' bytes once and fused none of robot 0's (mapping.team_map "anchor").
+    EXPECT_NE(both.out.find("\"peer_submaps\": "), std::string::npos) << both.out;
+    EXPECT_EQ(both.out.find("\"peer_submaps\": 0"), std::string::npos) << both.out;
+    EXPECT_NE(out1.find("\"peer_submaps\": 0"), std::string::npos) << out1;
+    const auto mesh0 = ReadPlyVertices(dir_ / "distributed" / "robot0.mesh.ply");
+    const auto mesh1 = ReadPlyVertices(dir_ / "distributed" / "robot1.mesh.ply");
+    ASSERT_GT(mesh1.size(), 1000u);
+    EXPECT_GT(mesh0.size(), mesh1.size());  // robot 1's submaps are in robot 0's mesh
+    const std::vector<std::string> tums{(dir_ / "local" / "robot0.tum").string(),
+                                        (dir_ / "local" / "robot1.tum").string()};
+    EXPECT_LT(FarthestFromTrajectories(mesh0, tums), kSensorRange_m + kMeshSlack_m);
 }
 
 TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum) {

@@ -1,6 +1,7 @@
 // Ingest, descriptor and loop matcher actors of two robots over real inproc sockets on a
 // simulated mission: the loops they publish agree with ground truth, each robot's matcher says
-// end of loops, clouds cross robots only for candidates, malformed keyframes are counted.
+// end of loops, clouds cross robots only for candidates (through the cloud-request gate, each
+// downsampled at the registration voxel), malformed keyframes are counted.
 #include <gtest/gtest.h>
 
 #include <thread>
@@ -10,6 +11,7 @@
 #include "actors/ingest_actor.h"
 #include "actors/loop_matcher_actor.h"
 #include "certislam/v1/control.pb.h"
+#include "slam/downsample.h"
 #include "slam/simulator.h"
 
 namespace certislam::actors {
@@ -20,7 +22,17 @@ constexpr double kLoopTranslationTolerance_m = 0.3;
 constexpr double kLoopRotationTolerance_rad = 0.035;  // 2 degrees
 constexpr auto kTimeout = std::chrono::seconds(60);
 
-TEST(FrontEndActors, TwoRobotsFindTrueInterRobotLoopsAndRequestOnlyCandidateClouds) {
+/// What a two-robot front end run sent.
+struct FrontEndRun {
+    std::vector<slam::LoopClosure> loops;  ///< every loop on both loop streams
+    int inter = 0;                         ///< inter-robot loops among them
+    int clouds_requested = 0;              ///< robot 1's cloud requests (distinct)
+    int skipped = 0;                       ///< robot 1's candidates the gate skipped
+};
+
+/// Runs ingest, descriptor and matcher actors of robots 0 and 1 on the simulated mission and
+/// checks what every run must show (true loops, end markers, candidate clouds only).
+FrontEndRun RunFrontEnd(const LoopMatcherConfig& matcher_config) {
     slam::SimulatorConfig sim;
     sim.seed = 1;
     const slam::MissionGenerator generator(sim);
@@ -31,7 +43,7 @@ TEST(FrontEndActors, TwoRobotsFindTrueInterRobotLoopsAndRequestOnlyCandidateClou
     std::vector<IngestActor*> ingests;
     for (int r : robots) {
         const TeamWiring w = InprocWiring(r, robots);
-        auto matcher = std::make_unique<LoopMatcherActor>(context, w, LoopMatcherConfig{});
+        auto matcher = std::make_unique<LoopMatcherActor>(context, w, matcher_config);
         matchers.push_back(matcher.get());
         actors.push_back(std::move(matcher));
         actors.push_back(std::make_unique<DescriptorActor>(context, w, slam::ScanContextConfig{}));
@@ -69,7 +81,8 @@ TEST(FrontEndActors, TwoRobotsFindTrueInterRobotLoopsAndRequestOnlyCandidateClou
             }
         }
     }
-    ASSERT_EQ(ended.size(), 2u) << "a matcher never said end of loops";
+    FrontEndRun run;
+    EXPECT_EQ(ended.size(), 2u) << "a matcher never said end of loops";
     int inter = 0;
     for (const auto& loop : loops) {
         const Eigen::Isometry3d T_true =
@@ -81,7 +94,6 @@ TEST(FrontEndActors, TwoRobotsFindTrueInterRobotLoopsAndRequestOnlyCandidateClou
         EXPECT_LE(loop.a.robot, loop.b.robot);  // the higher robot checks, the lower is the tail
         inter += loop.inter_robot() ? 1 : 0;
     }
-    EXPECT_GE(inter, 1);
     // Robot 0 served clouds only for robot 1's candidates: far less than all its clouds.
     std::uint64_t all_clouds = 0;
     for (int i = 0; i < kKeyframes; ++i) {
@@ -92,6 +104,75 @@ TEST(FrontEndActors, TwoRobotsFindTrueInterRobotLoopsAndRequestOnlyCandidateClou
     for (auto* ingest : ingests) EXPECT_EQ(ingest->Published(), kKeyframes);
     for (auto& a : actors) EXPECT_EQ(a->Counters().dropped_malformed, 0u) << a->Name();
     for (auto& a : actors) a->Stop();
+    run.loops = loops;
+    run.inter = inter;
+    run.clouds_requested = matchers[1]->CloudsRequested();
+    run.skipped = matchers[1]->Skipped();
+    return run;
+}
+
+TEST(FrontEndActors, TwoRobotsFindTrueInterRobotLoopsAndRequestOnlyCandidateClouds) {
+    const FrontEndRun run = RunFrontEnd(LoopMatcherConfig{});  // place_window 0: no skips
+    EXPECT_GE(run.inter, 1);
+    EXPECT_EQ(run.skipped, 0);
+    EXPECT_GE(run.clouds_requested, run.inter);  // at most one cloud per verified candidate
+}
+
+// One place (a window wider than the mission): after a cloud registered, later candidates of
+// the robot pair are skipped; only failed registrations reopen the place for another request.
+TEST(FrontEndActors, PlaceGateSkipsCandidatesOfAPlaceAlreadyVerified) {
+    LoopMatcherConfig config;
+    config.place_window = 1000;
+    const FrontEndRun run = RunFrontEnd(config);
+    EXPECT_GT(run.skipped, 0);
+    EXPECT_LE(run.inter, 1);  // the place's one admitted candidate
+    EXPECT_GE(run.clouds_requested, 1);
+}
+
+// A cloud reply carries the keyframe's cloud downsampled at the requester's registration voxel
+// (both robots run the team's settings), not the full-resolution scan.
+TEST(FrontEndActors, CloudReplyIsDownsampledAtTheRegistrationVoxel) {
+    slam::SimulatorConfig sim;
+    sim.seed = 1;
+    const slam::MissionGenerator generator(sim);
+    const slam::Keyframe keyframe = generator.Generate(0, 0).keyframe;
+    for (const bool downsample : {true, false}) {
+        zmq::context_t context;
+        const std::vector<int> robots{0, 1};
+        const TeamWiring w0 = InprocWiring(0, robots);
+        LoopMatcherConfig config;
+        config.registration.voxel_m = 0.4;
+        config.downsample_replies = downsample;
+        LoopMatcherActor matcher(context, w0, config);
+        transport::Endpoint keyframes(context, ServerConfig(w0, Edge::kKeyframes));
+        matcher.Start();
+        ASSERT_TRUE(keyframes.WaitForSubscribers(1, std::chrono::seconds(5)));
+        ASSERT_EQ(keyframes.Send(EncodeKeyframe(keyframe, 1)), transport::SendStatus::kSent);
+        transport::Endpoint dealer(context, ClientConfig(InprocWiring(1, robots), Edge::kClouds, 0,
+                                                         transport::Role::kDealer));
+        std::optional<slam::PointCloudPtr> cloud;
+        v1::CloudReply reply;
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+        while (!cloud && std::chrono::steady_clock::now() < deadline) {
+            v1::CloudRequest request;
+            *request.mutable_header() = MakeHeader(1, 1, 0);
+            *request.mutable_pose_id() = ToProto(slam::PoseId{0, 0});
+            request.set_request_id(7);
+            dealer.Send(transport::Pack(request));
+            if (auto m = dealer.Receive(std::chrono::milliseconds(200))) {
+                cloud = DecodeCloudReply(*m, &reply);  // nullopt while the keyframe is not in
+            }
+        }
+        ASSERT_TRUE(cloud.has_value());
+        const std::size_t expected = downsample ? slam::VoxelDownsample(*keyframe.cloud, 0.4).size()
+                                                : keyframe.cloud->size();
+        EXPECT_EQ((*cloud)->size(), expected);
+        EXPECT_EQ(reply.request_id(), 7u);
+        if (downsample) {
+            EXPECT_LT(2 * expected, keyframe.cloud->size());
+        }
+        matcher.Stop();
+    }
 }
 
 TEST(FrontEndActors, MalformedKeyframeIsDroppedAndCounted) {

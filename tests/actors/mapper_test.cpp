@@ -2,7 +2,8 @@
 // robot's ingest (keyframes) and solver (trajectory updates on the bundle stream). Robot 1's
 // submap (a wall only robot 1 saw) reaches robot 0 as compressed bytes and is fused into robot
 // 0's map; a trajectory update that moves robot 1's keyframe moves that wall in robot 0's mesh
-// (a pose-only update, no re-integration).
+// (a pose-only update, no re-integration). Bandwidth: by default only the anchor (robot 0)
+// receives submaps, and a growing submap's bytes go out once, not on every publish tick.
 #include <gtest/gtest.h>
 
 #include <thread>
@@ -61,11 +62,9 @@ struct Robot {
     std::unique_ptr<MapperActor> mapper;
 };
 
-TEST(MapperActor, PeerSubmapIsFusedAndAMovedPoseMovesTheMesh) {
-    zmq::context_t context;
+/// Two robots' mappers over inproc, with the endpoints of their ingest and solver.
+std::vector<Robot> StartTeam(zmq::context_t& context, const MapperConfig& config) {
     const std::vector<int> ids{0, 1};
-    MapperConfig config;
-    config.publish_period = std::chrono::milliseconds(100);
     std::vector<Robot> robots(2);
     for (int r : ids) {
         const TeamWiring w = InprocWiring(r, ids);
@@ -76,16 +75,30 @@ TEST(MapperActor, PeerSubmapIsFusedAndAMovedPoseMovesTheMesh) {
         robots[r].mapper = std::make_unique<MapperActor>(context, w, config);
     }
     for (auto& robot : robots) robot.mapper->Start();
+    return robots;
+}
+
+slam::Keyframe WallKeyframe(int robot, int index) {
+    slam::Keyframe kf;
+    kf.robot = robot;
+    kf.index = index;
+    kf.T_odom_sensor.translation() = Eigen::Vector3d(0.0, 0.0, 0.1 * index);
+    kf.cloud = Wall(robot == 1);
+    return kf;
+}
+
+TEST(MapperActor, PeerSubmapIsFusedAndAMovedPoseMovesTheMesh) {
+    zmq::context_t context;
+    const std::vector<int> ids{0, 1};
+    MapperConfig config;
+    config.publish_period = std::chrono::milliseconds(100);
+    config.team_map = TeamMap::kAll;
+    std::vector<Robot> robots = StartTeam(context, config);
     for (int r : ids) {
         ASSERT_TRUE(robots[r].keyframes->WaitForSubscribers(1, std::chrono::seconds(5)));
         ASSERT_TRUE(robots[r].bundle->WaitForSubscribers(1, std::chrono::seconds(5)));
         for (int i = 0; i < kScans; ++i) {  // a few scans from nearby poses
-            slam::Keyframe kf;
-            kf.robot = r;
-            kf.index = i;
-            kf.T_odom_sensor.translation() = Eigen::Vector3d(0.0, 0.0, 0.1 * i);
-            kf.cloud = Wall(r == 1);
-            ASSERT_EQ(robots[r].keyframes->Send(EncodeKeyframe(kf, i + 1)),
+            ASSERT_EQ(robots[r].keyframes->Send(EncodeKeyframe(WallKeyframe(r, i), i + 1)),
                       transport::SendStatus::kSent);
         }
     }
@@ -121,6 +134,52 @@ TEST(MapperActor, PeerSubmapIsFusedAndAMovedPoseMovesTheMesh) {
     for (auto& robot : robots) robot.mapper->Stop();
     EXPECT_EQ(m0.Counters().dropped_malformed, 0u);
     EXPECT_EQ(robots[1].mapper->Counters().dropped_malformed, 0u);
+}
+
+// Keyframes a few publish periods apart all go into one growing submap: its bytes go out once
+// (after the keyframes paused), only to robot 0 (the anchor, TeamMap::kAnchor), and robot 0's
+// submap goes nowhere (robot 1 does not subscribe to it).
+TEST(MapperActor, OnlyTheAnchorReceivesSubmapsAndAGrowingSubmapIsSentOnce) {
+    zmq::context_t context;
+    MapperConfig config;  // team_map: kAnchor by default
+    config.publish_period = std::chrono::milliseconds(100);
+    config.active_submap_quiet = std::chrono::milliseconds(800);
+    ASSERT_EQ(config.team_map, TeamMap::kAnchor);
+    std::vector<Robot> robots = StartTeam(context, config);
+    MapperActor &m0 = *robots[0].mapper, &m1 = *robots[1].mapper;
+    EXPECT_TRUE(m0.FusesPeers());
+    EXPECT_FALSE(m1.FusesPeers());
+    for (int r : {0, 1}) {
+        ASSERT_TRUE(robots[r].keyframes->WaitForSubscribers(1, std::chrono::seconds(5)));
+    }
+    for (int i = 0; i < kScans; ++i) {  // three publish ticks between keyframes
+        for (int r : {0, 1}) {
+            ASSERT_EQ(robots[r].keyframes->Send(EncodeKeyframe(WallKeyframe(r, i), i + 1)),
+                      transport::SendStatus::kSent);
+        }
+        std::this_thread::sleep_for(config.publish_period * 3);
+    }
+    ASSERT_TRUE(WaitFor([&] { return m0.Stats().peer_submaps == 1; }));
+    ASSERT_TRUE(WaitFor([&] { return m1.Stats().integrated == kScans; }));
+    std::this_thread::sleep_for(config.active_submap_quiet + config.publish_period * 3);
+    EXPECT_EQ(m1.Stats().own_submaps, 1);
+    EXPECT_EQ(m1.Stats().submap_sends, 1);  // not once per tick while it grew
+    EXPECT_GT(m1.Stats().submap_bytes_sent, 0u);
+    EXPECT_EQ(m0.Stats().submap_sends, 0);  // nobody subscribed to robot 0's map
+    EXPECT_EQ(m0.Stats().submap_bytes_sent, 0u);
+    EXPECT_EQ(m1.Stats().peer_submaps, 0);
+    // Robot 0 holds robot 1's wall with all three scans in it, as robot 1 meshes it.
+    const auto [own1, n_own1] = WallVertices(m1.FusedMesh(0.2), kWallX_m / 2);
+    const auto [at0, n_at0] = WallVertices(m0.FusedMesh(0.2), kWallX_m / 2);
+    ASSERT_GT(n_own1, 50);
+    EXPECT_EQ(n_at0, n_own1);
+    for (auto& robot : robots) robot.mapper->Stop();
+}
+
+TEST(MapperConfig, RejectsANegativeActiveSubmapQuiet) {
+    MapperConfig config;
+    config.active_submap_quiet = std::chrono::milliseconds(-1);
+    EXPECT_THROW(config.Validate(), std::invalid_argument);
 }
 
 }  // namespace

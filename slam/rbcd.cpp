@@ -67,13 +67,16 @@ struct RbcdAgent::Impl {
     Eigen::SparseMatrix<double> Qna;  // rows: neighbour poses' columns (compacted); cols: own
     BlockFactor factor;
     std::unique_ptr<HessianPreconditioner> hessian;  // borrows Qaa (stable: Impl is on the heap)
+    std::unique_ptr<TranslationElimination> elim;    // borrows Qaa too
     std::vector<int> neighbor_ids;
     std::vector<int> public_ids;
     std::vector<int> public_local;  // local pose index of each public pose
     Eigen::MatrixXd X;              // own block
     Eigen::MatrixXd G;              // linear term X_nbr Q_na
 
-    BlockProblem Problem() const { return BlockProblem{&Qaa, &G, &factor, d, hessian.get()}; }
+    BlockProblem Problem() const {
+        return BlockProblem{&Qaa, &G, &factor, d, hessian.get(), elim.get()};
+    }
 };
 
 RbcdAgent::RbcdAgent(const PoseGraph& graph, const Partition& partition, int robot, int rank,
@@ -149,6 +152,7 @@ RbcdAgent::RbcdAgent(const Eigen::SparseMatrix<double>& Q, int d, const Partitio
     CERTISLAM_CHECK(m.factor.info() == Eigen::Success);
     if (config.hessian_preconditioner)
         m.hessian = std::make_unique<HessianPreconditioner>(m.Qaa, d);
+    if (config.eliminate_translations) m.elim = std::make_unique<TranslationElimination>(m.Qaa, d);
     m.X = Eigen::MatrixXd::Zero(rank, cols);
     m.G = Eigen::MatrixXd::Zero(rank, cols);
 }

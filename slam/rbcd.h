@@ -34,6 +34,11 @@ struct RbcdConfig {
     /// slower on city10000 and cubicle (BENCHMARKS.md, issue 3, h2), and it moved the actor
     /// test's 2-robot result 1.02e-5 from the central one (tolerance 1e-5).
     bool hessian_preconditioner = false;
+    /// Each block update eliminates its translations exactly (SE-Sync's reduced problem): the
+    /// trust region runs on the rotations with the Schur complement of Q_TT, and the Q_aa
+    /// preconditioner becomes the exact inverse of the reduced Euclidean Hessian. false: the
+    /// explicit problem over rotations and translations.
+    bool eliminate_translations = true;
     /// Multi-robot: after this many RBCD iterations without convergence (or an earlier stall),
     /// finish with distributed second-order steps: a trust region on the whole X whose Hessian-
     /// vector products need only neighbours' entries (as RBCD's linear terms do) and whose

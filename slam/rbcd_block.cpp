@@ -28,6 +28,7 @@ struct Iterate {
 };
 
 Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X) {
+    if (p.elim != nullptr) p.elim->OptimizeTranslations(&X, p.G);
     Iterate it;
     it.egrad = X * (*p.Q);
     it.cost = Inner(it.egrad, X);
@@ -37,6 +38,7 @@ Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X) {
     }
     it.egrad *= 2.0;
     it.rgrad = ProjectToTangent(X, it.egrad, p.d);
+    if (p.elim != nullptr) p.elim->ZeroTranslations(&it.rgrad);  // ~0 at optimal translations
     it.grad_norm = it.rgrad.norm();
     it.X = std::move(X);
     return it;
@@ -79,7 +81,15 @@ int ValueIndex(const Eigen::SparseMatrix<double>& M, int row, int col) {
 }
 
 Eigen::MatrixXd Hessian(const BlockProblem& p, const Iterate& it, const Eigen::MatrixXd& V) {
-    Eigen::MatrixXd H = 2.0 * (V * (*p.Q));
+    Eigen::MatrixXd H;
+    if (p.elim != nullptr) {  // the reduced Hessian: V's translations follow its rotations
+        Eigen::MatrixXd lifted = V;
+        p.elim->Lift(&lifted);
+        H = 2.0 * (lifted * (*p.Q));
+        p.elim->ZeroTranslations(&H);
+    } else {
+        H = 2.0 * (V * (*p.Q));
+    }
     H -= WeingartenTerm(it.X, it.egrad, V, p.d);
     return ProjectToTangent(it.X, H, p.d);
 }
@@ -93,7 +103,10 @@ Eigen::MatrixXd Precondition(const BlockProblem& p, const Iterate& it, const Eig
     } else {
         Zt = p.precon->solve(Vt);
     }
-    const Eigen::MatrixXd Z = Zt.transpose();
+    // With translations eliminated, the rotation rows of Q^{-1} [0; V_R] are exactly
+    // (Q_RR - Q_RT Q_TT^{-1} Q_TR)^{-1} V_R: the reduced problem's Euclidean Hessian inverse.
+    Eigen::MatrixXd Z = Zt.transpose();
+    if (p.elim != nullptr) p.elim->ZeroTranslations(&Z);
     return ProjectToTangent(it.X, Z, p.d);
 }
 
@@ -224,7 +237,9 @@ double BlockCost(const BlockProblem& problem, const Eigen::MatrixXd& X) {
 }
 
 double BlockGradNorm(const BlockProblem& problem, const Eigen::MatrixXd& X) {
-    return Evaluate(problem, X).grad_norm;
+    BlockProblem explicit_problem = problem;  // the gradient at X as it is, translations too
+    explicit_problem.elim = nullptr;
+    return Evaluate(explicit_problem, X).grad_norm;
 }
 
 BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& options,
@@ -243,6 +258,7 @@ BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& opti
         ++out.iterations;
         const TcgResult step = TruncatedCg(p, it, radius, options.max_tcg_iterations);
         Eigen::MatrixXd X_new = Retract(it.X, step.eta, p.d);
+        if (p.elim != nullptr) p.elim->OptimizeTranslations(&X_new, p.G);
         const CostChange change = CostDifference(p, it.X, X_new);
         const double model = -Inner(it.rgrad, step.eta) - 0.5 * Inner(step.eta, step.Heta);
         // Manopt's rho regularisation keeps rho meaningful when both decreases are tiny; the

@@ -7,6 +7,8 @@
 #include <Eigen/SparseCore>
 #include <vector>
 
+#include "slam/translation_elimination.h"
+
 namespace certislam::slam {
 
 /// Sparse Cholesky of Q_aa + lambda I, factorised once per block, used as preconditioner.
@@ -62,6 +64,10 @@ struct BlockProblem {
     int d = 3;                                       ///< dimension
     /// Optional Hessian preconditioner (refactorised at each iterate); null: `precon` only.
     HessianPreconditioner* hessian = nullptr;
+    /// Optional exact elimination of the translations: the trust region then runs on the
+    /// rotations alone (tangent vectors have zero translation columns) and every iterate has
+    /// optimal translations; null: the explicit problem over rotations and translations.
+    const TranslationElimination* elim = nullptr;
 };
 
 /// Settings of one block solve.

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <vector>
 
 #include "slam/check.h"
@@ -141,7 +142,9 @@ int Polish(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partiti
     factor.compute(BlockDiagonal(Q, d, partition, config.precon_regulariser));
     CERTISLAM_CHECK(factor.info() == Eigen::Success);
     const Eigen::MatrixXd no_linear_term;
-    const BlockProblem problem{&Q, &no_linear_term, &factor, d, nullptr};
+    std::unique_ptr<TranslationElimination> elim;
+    if (config.eliminate_translations) elim = std::make_unique<TranslationElimination>(Q, d);
+    const BlockProblem problem{&Q, &no_linear_term, &factor, d, nullptr, elim.get()};
     BlockRtrOptions options;
     options.max_iterations = config.polish_max_rtr_iterations;
     options.max_tcg_iterations = config.max_tcg_iterations;

@@ -2,6 +2,7 @@
 #include "certify/certificate.h"
 
 #include <Eigen/CholmodSupport>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -19,6 +20,7 @@ using slam::BlockColumn;
 
 constexpr double kRoundingNoise = 1e-12;        ///< relative noise of a product X Q in doubles
 constexpr double kBoundRefinementFactor = 0.1;  ///< eta step of the lower-bound refinement
+constexpr double kLambdaMargin = 4.0;           ///< first refined eta in units of -lambda_min
 
 void Require(bool ok, const std::string& field, double value, const std::string& rule) {
     if (!ok) {
@@ -80,6 +82,28 @@ class PsdTest {
     std::vector<int> shifted_;
     Eigen::CholmodDecomposition<SparseMatrix, Eigen::Lower> factor_;
 };
+
+/// Tightens the verified eta (the lower bound f* >= tr(Lambda) - eta d n) after the eigen-
+/// solve: the smallest eta worth trying is a small multiple of |lambda_min| (S + eta D is not
+/// PSD below -lambda_min), so one factorization there usually settles it; if it fails, eta
+/// steps down from the verdict's by kBoundRefinementFactor as far as it still factorizes.
+template <typename SetBound>
+void RefineBound(const CertificateConfig& config, double eta, double lambda_min, PsdTest* psd,
+                 const SetBound& set_bound) {
+    if (config.bound_refinements == 0) return;
+    double floor = eta;
+    for (int k = 0; k < config.bound_refinements; ++k) floor *= kBoundRefinementFactor;
+    const double target = std::max(kLambdaMargin * std::max(-lambda_min, 0.0), floor);
+    if (target < eta && psd->PsdAt(target)) {
+        set_bound(target);
+        return;
+    }
+    for (int k = 0; k < config.bound_refinements; ++k) {
+        eta *= kBoundRefinementFactor;
+        if (eta <= target || !psd->PsdAt(eta)) break;
+        set_bound(eta);
+    }
+}
 
 }  // namespace
 
@@ -170,14 +194,6 @@ CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d
     }
     PsdTest psd(S, d);
     result.psd_at_eta = psd.PsdAt(result.eta);  // the verdict (SE-Sync fast verification)
-    if (result.psd_at_eta) {
-        double eta = result.eta;
-        for (int k = 0; k < config.bound_refinements; ++k) {
-            eta *= kBoundRefinementFactor;
-            if (!psd.PsdAt(eta)) break;
-            set_bound(eta);
-        }
-    }
     MinEigenpairConfig eig;
     eig.initial_shift = result.eta;
     eig.tolerance = config.eigen_tolerance;
@@ -190,6 +206,7 @@ CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d
     if (pair.status != MinEigenpairResult::Status::kConverged) {
         return finish(CertificateResult::Status::kEigensolverFailed);
     }
+    if (result.psd_at_eta) RefineBound(config, result.eta, pair.lambda, &psd, set_bound);
     result.lambda_min = pair.lambda;
     result.lambda_min_relative = result.q_norm > 0.0 ? pair.lambda / result.q_norm : 0.0;
     result.eigen_residual = pair.residual;

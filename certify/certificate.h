@@ -29,10 +29,11 @@ struct CertificateConfig {
     int eigen_max_iterations = 1000;  ///< Lanczos restarts, > 0
     int eigen_subspace = 24;          ///< Lanczos basis size (ncv), >= 3
     std::uint64_t seed = 20261121;    ///< seed of the Lanczos start vector (fixed: reproducible)
-    /// After a certified verdict, eta is divided by 10 up to this many times while S + eta D
-    /// still factorizes, to tighten the lower bound f* >= tr(Lambda) - eta d n (the verdict's
-    /// eta is meant to be safe, not tight; at a well-converged optimum S is PSD to rounding
-    /// noise). >= 0.
+    /// After a certified verdict the lower bound f* >= tr(Lambda) - eta d n is tightened down
+    /// to eta * 10^-bound_refinements (the verdict's eta is meant to be safe, not tight; at a
+    /// well-converged optimum S is PSD to rounding noise): first one factorization at
+    /// max(4 |lambda_min|, that floor), then, if it fails, eta / 10 steps while S + eta D still
+    /// factorizes. >= 0; 0: the bound stays at the verdict's eta.
     int bound_refinements = 6;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.

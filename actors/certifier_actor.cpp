@@ -125,7 +125,7 @@ void CertifierActor::Tick() {
         ++fallbacks_;
         slam::PoseGraph graph;
         Eigen::MatrixXd X;
-        if (Assemble(&graph, &X)) CheckCentrally(graph, X);
+        if (Assemble(&graph, &X)) CheckCentrally(graph, X, v1::CERTIFICATE_PATH_FALLBACK);
         return;
     }
     slam::PoseGraph graph;
@@ -135,16 +135,17 @@ void CertifierActor::Tick() {
     if (config_.distributed) {
         StartRound();
     } else {
-        CheckCentrally(graph, X);
+        CheckCentrally(graph, X, v1::CERTIFICATE_PATH_CENTRALISED);
     }
 }
 
-bool CertifierActor::Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const {
-    if (bundles_.size() != Wiring().robots.size()) return false;
+bool CertifierActor::Assemble(const std::map<int, Bundle>& bundles, slam::PoseGraph* graph,
+                              Eigen::MatrixXd* X) const {
+    if (bundles.size() != Wiring().robots.size()) return false;
     // Every robot final, at one rank, its block covering its poses.
     std::map<int, int> offset;
-    const int rank = static_cast<int>(bundles_.begin()->second.block.blocks.rows());
-    for (const auto& [robot, b] : bundles_) {
+    const int rank = static_cast<int>(bundles.begin()->second.block.blocks.rows());
+    for (const auto& [robot, b] : bundles) {
         if (b.status.phase() != v1::SolverStatus::PHASE_CONVERGED) return false;
         if (b.block.blocks.rows() != rank || b.block.ids.size() != b.status.num_poses()) {
             return false;
@@ -154,14 +155,14 @@ bool CertifierActor::Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const 
         graph->n += static_cast<int>(b.block.ids.size());
     }
     X->resize(rank, 4 * graph->n);
-    for (const auto& [robot, b] : bundles_)
+    for (const auto& [robot, b] : bundles)
         X->middleCols(4 * offset[robot], b.block.blocks.cols()) = b.block.blocks;
     const auto index = [&](const slam::PoseId& id) -> int {
-        const auto it = bundles_.find(id.robot);
-        if (it == bundles_.end() || id.index >= int(it->second.block.ids.size())) return -1;
+        const auto it = bundles.find(id.robot);
+        if (it == bundles.end() || id.index >= int(it->second.block.ids.size())) return -1;
         return offset[id.robot] + id.index;
     };
-    for (const auto& [robot, b] : bundles_) {
+    for (const auto& [robot, b] : bundles) {
         for (const auto& e : b.edges) {
             slam::RelativePoseMeasurement m;
             m.i = index(e.a);
@@ -177,28 +178,31 @@ bool CertifierActor::Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const 
     return true;
 }
 
-void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X) {
+void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X,
+                                    v1::CertificatePath path) {
     const auto Q = slam::ConnectionLaplacian(graph);
     const auto result = certify::Certify(Q, X, 3, config_.certificate);
     ++checks_;
     auto report = ToProto(result, static_cast<std::uint32_t>(X.rows()));
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     report.set_iteration(graph.edges.size());  // which graph: its edge count
+    report.set_path(path);
     Send(*out_, transport::Pack(report), true);
     if (result.status == certify::CertificateResult::Status::kNotCertified &&
         level_ < config_.max_staircase_steps) {
-        Escape(Q, X, result.eigenvector, result.gradient_tolerance);
+        Escape(Q, X, result.eigenvector, result.gradient_tolerance, bundles_);
     }
 }
 
 void CertifierActor::Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
-                            const Eigen::VectorXd& v, double gradient_tolerance) {
+                            const Eigen::VectorXd& v, double gradient_tolerance,
+                            const std::map<int, Bundle>& bundles) {
     const auto escaped = certify::EscapeSaddle(Q, X, 3, v, gradient_tolerance);
     if (escaped.status != certify::EscapeResult::Status::kEscaped) return;
     ++level_;
     ++escapes_;
     int column = 0;
-    for (const auto& [robot, b] : bundles_) {
+    for (const auto& [robot, b] : bundles) {
         PoseBlocks blocks;
         blocks.ids = b.block.ids;
         blocks.blocks = escaped.X.middleCols(column, b.block.blocks.cols());

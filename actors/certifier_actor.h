@@ -34,12 +34,16 @@ struct CertifierConfig {
                                                     ///< checks that graph centrally
     std::chrono::milliseconds round_resend{500};    ///< a round silent this long: last messages
                                                     ///< re-sent (a peer may have joined late)
+    bool cross_check = false;  ///< anchor, distributed: also checks every round's graph
+                               ///< centrally (DistributedVerdict::central_lambda_min; tests)
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
 };
 
-/// Distributed-solution certifier (centralised check at the anchor robot).
+/// Distributed-solution certifier. Its CertificateReport's `path` says which check gave the
+/// verdict: a distributed round, the anchor's centralised check (centralised mode), or the
+/// anchor's centralised check of a round that stayed silent for round_timeout (fallback).
 class CertifierActor final : public NodeActor {
   public:
     CertifierActor(zmq::context_t& context, TeamWiring wiring, CertifierConfig config);
@@ -70,10 +74,16 @@ class CertifierActor final : public NodeActor {
     static std::uint64_t Digest(const Bundle& b);
     void SubscribeBundles();
     void Tick();
-    bool Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const;
-    void CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X);
+    bool Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const {
+        return Assemble(bundles_, graph, X);
+    }
+    bool Assemble(const std::map<int, Bundle>& bundles, slam::PoseGraph* graph,
+                  Eigen::MatrixXd* X) const;
+    void CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X,
+                        v1::CertificatePath path);
     void Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
-                const Eigen::VectorXd& v, double gradient_tolerance);
+                const Eigen::VectorXd& v, double gradient_tolerance,
+                const std::map<int, Bundle>& bundles);
     // Distributed rounds (certifier_actor_rounds.cpp).
     void SubscribeRounds();
     void StartRound();
@@ -88,6 +98,7 @@ class CertifierActor final : public NodeActor {
     std::map<int, Bundle> pending_;                ///< bundles being received
     std::map<int, Bundle> bundles_;                ///< last complete bundle per robot
     std::map<int, std::vector<Bundle>> history_;   ///< recent distinct bundles, newest last
+    std::map<int, Bundle> round_bundles_;          ///< anchor: the bundles of the round
     std::unique_ptr<LanczosParticipant> lanczos_;  ///< the round in progress
     std::uint64_t round_ = 0;                      ///< its id
     std::uint64_t round_edges_ = 0;                ///< edges of its graph

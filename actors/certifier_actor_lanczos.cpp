@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "slam/connection_laplacian.h"
@@ -17,15 +18,57 @@ namespace {
 constexpr int kBlock = 4;                   ///< columns per pose, d + 1 with d = 3
 constexpr double kBreakdown = 1e-300;       ///< beta below this: the Krylov space is invariant
 constexpr int kSetupStage = 0;              ///< reduction of the setup sums (step 0)
-constexpr int kPass1Stage = 1;              ///< first reorthogonalisation pass
-constexpr int kPass2Stage = 2;              ///< second pass ("twice is enough")
-constexpr int kNormStage = 3;               ///< squared norm of the new direction
+constexpr int kPass1Stage = 1;              ///< alpha = v_k^T S v_k
+constexpr int kPass2Stage = 2;              ///< full reorthogonalisation pass and the squared norm
+constexpr int kBisections = 200;            ///< bisection steps at most (each halves the bracket)
 constexpr std::uint64_t kRobotSeed = 7919;  ///< start vector seed stride per robot
 constexpr double kInverseIterationShift = 1e-10;  ///< shift below lambda, relative to max |Ritz|
 constexpr int kInverseIterationSweeps = 3;        ///< sweeps of inverse iteration
 
 /// Setup sums, in message order.
 enum SetupIndex { kCost, kGradientSq, kQRowSum, kTraceLambda, kStartNormSq, kDimension, kSetupN };
+
+/// u -= sum_i c_i V_i, element by element in i order: the owner of a Lanczos vector and every
+/// reader of its public entries do the same operations, so they hold the same numbers.
+void SubtractCombination(Eigen::VectorXd* u, const std::vector<Eigen::VectorXd>& V,
+                         const std::vector<double>& c) {
+    for (size_t i = 0; i < V.size(); ++i) *u -= c[i] * V[i];
+}
+
+/// Eigenvalues of the tridiagonal T (diagonal a, off-diagonal off) below x (Sturm count).
+int CountBelow(const Eigen::VectorXd& a, const Eigen::VectorXd& off, double x) {
+    int count = 0;
+    double d = 1.0;
+    for (Eigen::Index i = 0; i < a.size(); ++i) {
+        d = a(i) - x - (i > 0 ? off(i - 1) * off(i - 1) / d : 0.0);
+        if (d == 0.0) d = -std::numeric_limits<double>::min();  // x is an eigenvalue: below
+        if (d < 0.0) ++count;
+    }
+    return count;
+}
+
+/// The k-th smallest eigenvalue (k from 0) of the tridiagonal T by bisection on the Sturm count:
+/// O(m) per halving instead of the O(m^2) of a full tridiagonal eigen-decomposition, so the
+/// Ritz values can be checked every few steps of a long Lanczos run.
+double TridiagonalEigenvalue(const Eigen::VectorXd& a, const Eigen::VectorXd& off, int k) {
+    double lo = a(0), hi = a(0);
+    for (Eigen::Index i = 0; i < a.size(); ++i) {  // Gershgorin
+        const double radius =
+            (i > 0 ? std::abs(off(i - 1)) : 0.0) + (i + 1 < a.size() ? std::abs(off(i)) : 0.0);
+        lo = std::min(lo, a(i) - radius);
+        hi = std::max(hi, a(i) + radius);
+    }
+    const double width = std::max(std::abs(lo), std::abs(hi));
+    for (int it = 0; it < kBisections; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        if (hi - lo <= 2.0 * std::numeric_limits<double>::epsilon() * width || mid <= lo ||
+            mid >= hi) {
+            break;
+        }
+        (CountBelow(a, off, mid) > k ? hi : lo) = mid;
+    }
+    return 0.5 * (lo + hi);
+}
 
 /// Unit eigenvector of the tridiagonal T (diagonal a, off-diagonal off) for its smallest
 /// eigenvalue `lambda`: inverse iteration with T - (lambda - delta) I, which is positive definite,
@@ -144,6 +187,7 @@ void LanczosParticipant::Begin() {
     setup[kStartNormSq] = q.squaredNorm();
     setup[kDimension] = static_cast<double>(q.size());
     Share(0, kSetupStage, setup);
+    SendVector(0, q);  // unnormalised: every reader divides by the norm from the setup sums
     Advance();
 }
 
@@ -185,17 +229,31 @@ void LanczosParticipant::Share(int step, int stage, const std::vector<double>& v
     send_reduction_(step, stage, values);
 }
 
-void LanczosParticipant::SendVector() {
-    const Eigen::VectorXd entries = certify::PublicEntries(problem_.rows, basis_.back());
+void LanczosParticipant::SendVector(int step, const Eigen::VectorXd& u) {
     if (problem_.public_ids.empty()) return;
+    const Eigen::VectorXd entries = certify::PublicEntries(problem_.rows, u);
     verdict_.entries_sent += static_cast<double>(entries.size());
-    send_vector_(step_, problem_.public_ids, entries);
+    send_vector_(step, problem_.public_ids, entries);
 }
 
 bool LanczosParticipant::Product() {
     const auto it = vectors_.find(step_);
     for (const int r : problem_.neighbor_robots) {
         if (it == vectors_.end() || !it->second.count(r)) return false;
+    }
+    // Finish every neighbour's vector of this step: (u - V c) / beta, as its owner did.
+    for (const int r : problem_.neighbor_robots) {
+        Eigen::VectorXd& values = it->second.at(r).second;
+        auto& V = neighbor_basis_[r];
+        bool consistent = V.size() == pending_c_.size();
+        for (const auto& old : V) consistent = consistent && old.size() == values.size();
+        if (!consistent) {
+            Finish(DistributedVerdict::Status::kInconsistent);
+            return false;
+        }
+        SubtractCombination(&values, V, pending_c_);
+        values /= pending_b_;
+        V.push_back(values);
     }
     Eigen::VectorXd nbr(kBlock * problem_.neighbor_ids.size());
     for (size_t k = 0; k < problem_.neighbor_ids.size(); ++k) {
@@ -226,54 +284,64 @@ void LanczosParticipant::Advance() {
                 verdict_.eta = settings_.eta_relative * verdict_.q_norm;
                 verdict_.gradient_tolerance = settings_.gradient_tolerance_relative * 2.0 *
                                               std::sqrt(verdict_.q_norm * std::abs(verdict_.cost));
+                // Not a critical point: no eigenvalue can make a verdict (the centralised check
+                // stops here too), so no Lanczos step is spent.
+                if (verdict_.gradient_norm > verdict_.gradient_tolerance) {
+                    return Finish(DistributedVerdict::Status::kNotCritical);
+                }
                 max_steps_ = std::min(settings_.max_krylov, static_cast<int>(sums[kDimension]));
-                basis_.back() /= std::sqrt(sums[kStartNormSq]);
-                SendVector();
+                pending_c_.clear();
+                pending_b_ = std::sqrt(sums[kStartNormSq]);
+                basis_.back() /= pending_b_;
                 phase_ = Phase::kProduct;
                 break;
             }
             case Phase::kProduct: {
                 if (!Product()) return;
-                std::vector<double> c;
-                for (const auto& u : basis_) c.push_back(u.dot(w_));
-                Share(step_, kPass1Stage, c);
+                Share(step_, kPass1Stage, {basis_.back().dot(w_)});
                 phase_ = Phase::kPass1;
                 break;
             }
-            case Phase::kPass1:
-            case Phase::kPass2: {
-                const bool first = phase_ == Phase::kPass1;
-                if (!Reduced(step_, first ? kPass1Stage : kPass2Stage, &sums)) return;
-                if (sums.size() != basis_.size())
-                    return Finish(DistributedVerdict::Status::kInconsistent);
-                if (first) alpha_.push_back(sums[static_cast<size_t>(step_)]);
-                for (size_t i = 0; i < basis_.size(); ++i) w_ -= sums[i] * basis_[i];
+            case Phase::kPass1: {
+                if (!Reduced(step_, kPass1Stage, &sums)) return;
+                if (sums.size() != 1) return Finish(DistributedVerdict::Status::kInconsistent);
+                // Three-term recurrence, then one full Gram-Schmidt pass against every vector
+                // (the recurrence removed the large components; the pass removes the rest).
+                alpha_.push_back(sums[0]);
+                w_ -= sums[0] * basis_.back();
+                if (!beta_.empty()) w_ -= beta_.back() * basis_[basis_.size() - 2];
                 std::vector<double> next;
-                if (first) {
-                    for (const auto& u : basis_) next.push_back(u.dot(w_));
-                } else {
-                    next.push_back(w_.squaredNorm());
-                }
-                Share(step_, first ? kPass2Stage : kNormStage, next);
-                phase_ = first ? Phase::kPass2 : Phase::kNorm;
+                for (const auto& u : basis_) next.push_back(u.dot(w_));
+                next.push_back(w_.squaredNorm());
+                Share(step_, kPass2Stage, next);
+                // The next vector's public entries before its second pass: readers finish it.
+                if (static_cast<int>(alpha_.size()) < max_steps_) SendVector(step_ + 1, w_);
+                phase_ = Phase::kPass2;
                 break;
             }
-            case Phase::kNorm: {
-                if (!Reduced(step_, kNormStage, &sums)) return;
-                const double b = std::sqrt(sums[0]);
+            case Phase::kPass2: {
+                if (!Reduced(step_, kPass2Stage, &sums)) return;
+                if (sums.size() != basis_.size() + 1)
+                    return Finish(DistributedVerdict::Status::kInconsistent);
+                const double norm_sq = sums.back();
+                sums.pop_back();
+                SubtractCombination(&w_, basis_, sums);
+                // ||w - V c||^2 = ||w||^2 - ||c||^2 for orthonormal V (c is tiny after pass 1).
+                double c_sq = 0.0;
+                for (const double c : sums) c_sq += c * c;
+                const double b = std::sqrt(std::max(norm_sq - c_sq, 0.0));
                 const int m = static_cast<int>(alpha_.size());
                 const bool last = b < kBreakdown || m >= max_steps_;
-                // Checks get rarer as the basis grows (each costs O(m^2)).
-                const int every = std::max(settings_.check_every, m / 20);
-                const bool converged = (last || m % every == 0) && Converged(b);
+                const bool converged = (last || m % settings_.check_every == 0) && Converged(b);
                 if (converged || last) {
                     return Finish(converged ? DistributedVerdict::Status::kCertified
                                             : DistributedVerdict::Status::kNotConverged);
                 }
                 beta_.push_back(b);
                 basis_.emplace_back(w_ / b);
+                pending_c_ = std::move(sums);
+                pending_b_ = b;
                 ++step_;
-                SendVector();
                 phase_ = Phase::kProduct;
                 break;
             }
@@ -285,10 +353,9 @@ bool LanczosParticipant::Converged(double b) {
     const int m = static_cast<int>(alpha_.size());
     const Eigen::VectorXd a = Eigen::Map<const Eigen::VectorXd>(alpha_.data(), m);
     const Eigen::VectorXd off = Eigen::Map<const Eigen::VectorXd>(beta_.data(), m - 1);
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig;
-    eig.computeFromTridiagonal(a, off, Eigen::EigenvaluesOnly);  // O(m^2): no dense T
-    const double scale = eig.eigenvalues().cwiseAbs().maxCoeff();
-    verdict_.lambda_min = eig.eigenvalues()(0);
+    verdict_.lambda_min = TridiagonalEigenvalue(a, off, 0);
+    const double scale =
+        std::max(std::abs(verdict_.lambda_min), std::abs(TridiagonalEigenvalue(a, off, m - 1)));
     const Eigen::VectorXd y = TridiagonalEigenvector(a, off, verdict_.lambda_min, scale);
     verdict_.residual_estimate = std::abs(b * y(m - 1));
     verdict_.steps = m;

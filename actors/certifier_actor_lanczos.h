@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 #include <utility>
 #include <vector>
@@ -51,6 +52,9 @@ struct DistributedVerdict {
     double gradient_tolerance = 0.0;  ///< absolute first-order tolerance
     int steps = 0;                    ///< Lanczos steps (S v products)
     double entries_sent = 0.0;        ///< doubles of v this robot sent to neighbours
+    /// Anchor with CertifierConfig::cross_check: lambda_min of the round's joint graph by the
+    /// centralised check (certify::Certify), for comparison
+    std::optional<double> central_lambda_min;
 };
 
 /// A robot's view of the joint graph for its rows of S.
@@ -74,7 +78,13 @@ bool MakeLocalProblem(int robot, const std::vector<slam::PoseId>& own_ids,
                       LocalCertificateProblem* out);
 
 /// Drives one robot through a round: Begin(), then feed every CertificateVector and
-/// CertificateReduction of the round; Done() once the verdict is in.
+/// CertificateReduction of the round; Done() once the verdict is in. Two exchanges per Lanczos
+/// step: alpha = v^T S v, then (after the three-term recurrence) one full reorthogonalisation
+/// pass's sums c = V^T u with ||u||^2, sent together with the public entries of u (the
+/// CertificateVector of step k + 1): every reader finishes the next vector itself as
+/// (u - V c) / beta from the reduced sums and the public entries of V it already holds. Ritz
+/// values by bisection (O(m) per check). A round whose gradient is above tolerance ends after
+/// the setup sums (kNotCritical, no steps).
 class LanczosParticipant {
   public:
     /// Sends this robot's public entries of the step's vector to its neighbours.
@@ -102,11 +112,11 @@ class LanczosParticipant {
     const DistributedVerdict& Verdict() const { return verdict_; }
 
   private:
-    enum class Phase { kSetup, kProduct, kPass1, kPass2, kNorm };
+    enum class Phase { kSetup, kProduct, kPass1, kPass2 };
     void Advance();
     bool Reduced(int step, int stage, std::vector<double>* sums, bool max_of_third = false);
     bool Product();
-    void SendVector();
+    void SendVector(int step, const Eigen::VectorXd& u);
     void Share(int step, int stage, const std::vector<double>& values);
     bool Converged(double b);
     void Finish(DistributedVerdict::Status status);
@@ -124,6 +134,10 @@ class LanczosParticipant {
     std::vector<Eigen::VectorXd> basis_;  ///< own segments of the Lanczos vectors
     Eigen::VectorXd w_;
     std::vector<double> alpha_, beta_;
+    std::vector<double> pending_c_;  ///< second-pass sums that finish step_'s vector
+    double pending_b_ = 1.0;         ///< and its norm
+    /// robot -> its public entries of every finished Lanczos vector (to finish the next one)
+    std::map<int, std::vector<Eigen::VectorXd>> neighbor_basis_;
     /// step -> robot -> (ids, values)
     std::map<int, std::map<int, std::pair<std::vector<slam::PoseId>, Eigen::VectorXd>>> vectors_;
     /// (step, stage) -> robot -> partial sums

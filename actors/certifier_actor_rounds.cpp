@@ -1,6 +1,7 @@
 // Certifier, distributed mode: the anchor opens rounds; every certifier builds its rows of S from
 // the named bundles and runs its share of Lanczos over CertificateVector/CertificateReduction.
 #include <chrono>
+#include <iterator>
 
 #include "actors/certifier_actor.h"
 #include "certify/saddle_escape.h"
@@ -23,12 +24,24 @@ v1::CertificateVerdict VerdictOf(DistributedVerdict::Status status) {
     }
 }
 
-/// Keeps the round's opening (anchor) and this robot's last vector and last partial sums.
+/// Keeps the round's opening (anchor), this robot's last vector and its last two partial sums
+/// (a peer that lost the second pass's sums of step k waits for them while this robot waits for
+/// the peer's first-pass sums of step k + 1).
 void Remember(std::vector<transport::Message>* sent, transport::Message m) {
-    const bool vector = m.Is<v1::CertificateVector>();
-    std::erase_if(*sent, [&](const transport::Message& old) {
-        return vector ? old.Is<v1::CertificateVector>() : old.Is<v1::CertificateReduction>();
-    });
+    constexpr int kReductionsKept = 2;
+    if (m.Is<v1::CertificateVector>()) {
+        std::erase_if(
+            *sent, [](const transport::Message& old) { return old.Is<v1::CertificateVector>(); });
+    } else {
+        int kept = 0;
+        for (auto it = sent->rbegin(); it != sent->rend(); ++it) {
+            if (it->Is<v1::CertificateReduction>()) ++kept;
+            if (kept == kReductionsKept) {
+                sent->erase(std::next(it).base());
+                break;
+            }
+        }
+    }
     sent->push_back(std::move(m));
 }
 
@@ -118,6 +131,10 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
     }
     round_ = round.round();
     round_rank_ = round.rank_r();
+    round_bundles_.clear();
+    if (anchor_) {  // its report, a cross-check and an escape are about this round's graph
+        for (const auto& [robot, b] : chosen) round_bundles_[robot] = *b;
+    }
     round_progress_ = std::chrono::steady_clock::now();
     round_sent_.clear();
     const auto send_vector = [this](int step, const std::vector<slam::PoseId>& ids,
@@ -200,10 +217,24 @@ void CertifierActor::ResendIfStalled() {
 
 void CertifierActor::RoundFinished() {
     if (!lanczos_ || !lanczos_->Done()) return;
-    const DistributedVerdict verdict = lanczos_->Verdict();
+    DistributedVerdict verdict = lanczos_->Verdict();
     {
         std::lock_guard lock(verdict_mutex_);
         if (verdict_ && verdict_->round == verdict.round) return;  // already counted
+    }
+    slam::PoseGraph graph;
+    Eigen::MatrixXd X;
+    const bool assembled =
+        anchor_ &&
+        (config_.cross_check || verdict.status == DistributedVerdict::Status::kNotCertified) &&
+        Assemble(round_bundles_, &graph, &X);
+    std::optional<certify::CertificateResult> central;
+    if (assembled && config_.cross_check) {
+        central = certify::Certify(slam::ConnectionLaplacian(graph), X, 3, config_.certificate);
+        verdict.central_lambda_min = central->lambda_min;
+    }
+    {
+        std::lock_guard lock(verdict_mutex_);
         verdict_ = verdict;
     }
     ++rounds_;
@@ -218,18 +249,17 @@ void CertifierActor::RoundFinished() {
     report.set_objective(verdict.cost);
     report.set_rank_r(round_rank_);
     report.set_iteration(round_edges_);  // which graph: its edge count
+    report.set_path(v1::CERTIFICATE_PATH_DISTRIBUTED);
     Send(*out_, transport::Pack(report), true);
-    slam::PoseGraph graph;
-    Eigen::MatrixXd X;
     if (verdict.status != DistributedVerdict::Status::kNotCertified ||
-        level_ >= config_.max_staircase_steps || !Assemble(&graph, &X)) {
+        level_ >= config_.max_staircase_steps || !assembled) {
         return;
     }
-    // The escape stays centralised: the anchor computes the eigenvector on the joint graph.
+    // The escape stays centralised: the anchor computes the eigenvector on the round's graph.
     const auto Q = slam::ConnectionLaplacian(graph);
-    const auto central = certify::Certify(Q, X, 3, config_.certificate);
-    if (central.status == certify::CertificateResult::Status::kNotCertified) {
-        Escape(Q, X, central.eigenvector, central.gradient_tolerance);
+    if (!central) central = certify::Certify(Q, X, 3, config_.certificate);
+    if (central->status == certify::CertificateResult::Status::kNotCertified) {
+        Escape(Q, X, central->eigenvector, central->gradient_tolerance, round_bundles_);
     }
 }
 

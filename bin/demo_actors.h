@@ -18,6 +18,9 @@ struct ActorMissionResult {
     bool done = false;                         ///< every robot certified and quiet in time
     bool certified = false;                    ///< the last certificate heard says certified
     std::string verdict = "none";              ///< that certificate's verdict, in words
+    std::string certificate_path = "none";     ///< which check gave it: distributed round,
+                                               ///< centralised, fallback (centralised after a
+                                               ///< silent round)
     double lambda_min = 0.0;                   ///< lambda_min(S) of that certificate
     double suboptimality_bound = 0.0;          ///< its f - f* bound
     double cost = 0.0;                         ///< its objective f

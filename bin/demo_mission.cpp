@@ -294,6 +294,7 @@ void FillFromActors(const ActorMissionResult& run, const std::vector<double>& rm
     report->actor_graph = {{"done", run.done},
                            {"certified", run.certified},
                            {"verdict", run.verdict},
+                           {"certificate_path", run.certificate_path},
                            {"seconds", run.seconds},
                            {"bytes_sent_measured", run.bytes_sent},
                            {"inter_robot_loops_per_robot", run.inter_robot_loops},

@@ -247,6 +247,7 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
     report["lambda_min"] = report_of ? report_of->lambda_min() : 0.0;
     report["verdict"] = report_of ? v1::CertificateVerdict_Name(report_of->verdict()) : "none";
     if (report_of) report["duality_gap"] = report_of->duality_gap();
+    if (report_of) report["certificate_path"] = v1::CertificatePath_Name(report_of->path());
     report["inter_robot_loops"] = loops / 2;  // each loop is known to both of its robots
     report["bytes_sent"] = bytes_sent;
     report["bytes_per_keyframe"] = keyframes > 0 ? double(bytes_sent) / keyframes : 0.0;

@@ -6,10 +6,7 @@
 #include <thread>
 
 #include "actors/certifier_actor.h"
-#include "actors/ingest_actor.h"
-#include "actors/loop_matcher_actor.h"
 #include "actors/solver_actor.h"
-#include "certislam/v1/control.pb.h"
 #include "tests/actors/solver_fixture.h"
 
 namespace certislam::actors {
@@ -17,55 +14,6 @@ namespace {
 
 constexpr double kPoseTolerance = 1e-5;
 constexpr auto kTimeout = std::chrono::seconds(40);
-
-/// Plays ingest and loop matcher for the given robots: keyframes (empty clouds), loops, ends.
-class Feeder {
-  public:
-    Feeder(zmq::context_t& context, const std::vector<int>& robots, int solvers) {
-        for (int r : robots) {
-            const TeamWiring w = InprocWiring(r, robots);
-            keyframes_.push_back(
-                std::make_unique<transport::Endpoint>(context, ServerConfig(w, Edge::kKeyframes)));
-            loops_.push_back(
-                std::make_unique<transport::Endpoint>(context, ServerConfig(w, Edge::kLoops)));
-        }
-        for (auto& e : keyframes_) EXPECT_TRUE(e->WaitForSubscribers(1, std::chrono::seconds(5)));
-        for (auto& e : loops_) {
-            EXPECT_TRUE(e->WaitForSubscribers(solvers, std::chrono::seconds(5)));
-        }
-    }
-    void Feed(const TwoRobotProblem& p) {
-        for (size_t r = 0; r < p.odometry.size(); ++r) {
-            for (size_t i = 0; i < p.odometry[r].size(); ++i) {
-                slam::Keyframe kf;
-                kf.robot = static_cast<int>(r);
-                kf.index = static_cast<int>(i);
-                kf.stamp_ns = static_cast<std::int64_t>(i) * 100000000;
-                kf.T_odom_sensor = p.odometry[r][i];
-                kf.cloud = std::make_shared<slam::PointCloud>();
-                keyframes_[r]->Send(EncodeKeyframe(kf, i + 1));
-            }
-            keyframes_[r]->Send(End(static_cast<int>(r), kEndOfKeyframes));
-        }
-        for (const auto& loop : p.loops) {
-            auto proto = ToProto(loop);
-            *proto.mutable_header() = MakeHeader(loop.b.robot, 1, 0);
-            loops_[loop.b.robot]->Send(transport::Pack(proto));
-        }
-        for (size_t r = 0; r < loops_.size(); ++r) {
-            loops_[r]->Send(End(static_cast<int>(r), kEndOfLoops));
-        }
-    }
-
-  private:
-    static transport::Message End(int robot, const char* reason) {
-        v1::Shutdown end;
-        *end.mutable_header() = MakeHeader(robot, 1, 0);
-        end.set_reason(reason);
-        return transport::Pack(end);
-    }
-    std::vector<std::unique_ptr<transport::Endpoint>> keyframes_, loops_;
-};
 
 SolverActorConfig Config(const TwoRobotProblem& p) {
     SolverActorConfig config;

@@ -46,6 +46,8 @@ void RbcdConfig::Validate() const {
             "must be >= 0");
     Require(polish_max_rtr_iterations >= 1, "polish_max_rtr_iterations", polish_max_rtr_iterations,
             "must be >= 1");
+    Require(polish_max_tcg_iterations >= 1, "polish_max_tcg_iterations", polish_max_tcg_iterations,
+            "must be >= 1");
 }
 
 double LiftedCost(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X) {

@@ -44,9 +44,19 @@ struct RbcdConfig {
     /// vector products need only neighbours' entries (as RBCD's linear terms do) and whose
     /// preconditioner is block Jacobi (each robot's own Cholesky of Q_aa); inner products are
     /// sums of one scalar per robot. Block coordinate descent alone has a slow linear tail on
-    /// graphs with strong inter-robot coupling (parking-garage). 0 disables; >= 0.
-    int polish_after_iterations = 30;
+    /// graphs with strong inter-robot coupling (parking-garage). With eliminate_translations
+    /// the finish eliminates the translations of the whole graph: each Hessian-vector product
+    /// then also needs Q_TT^{-1} (the scalar translation Laplacian) applied to r vectors, done
+    /// here by one global sparse Cholesky; on a network that is an inner distributed CG, which
+    /// is not implemented (this in-process finish is not yet a purely distributed algorithm).
+    /// 5 measured fastest of {5, 10, 30} on sphere2500, torus3D, cubicle, city10000 and
+    /// parking-garage with 5 robots (BENCHMARKS.md). 0 disables; >= 0.
+    int polish_after_iterations = 5;
     int polish_max_rtr_iterations = 300;  ///< trust-region steps of the finish, >= 1
+    /// Steihaug-CG iterations per step of the finish, >= 1: block Jacobi needs many to carry
+    /// information across robots (parking-garage --robots 5: 100 left every step at its cap
+    /// with no residual reduction, 2000 reached f* 5x sooner).
+    int polish_max_tcg_iterations = 2000;
     /// Second stop, for the slow linear tail of block coordinate descent: f fell by at most
     /// this * max(1, f) over the last `cost_window` iterations (the remaining gap is then far
     /// below 1e-6 f unless the rate is slower than 1 - 1e-4 per iteration). >= 0; 0 disables.

@@ -147,7 +147,7 @@ int Polish(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partiti
     const BlockProblem problem{&Q, &no_linear_term, &factor, d, nullptr, elim.get()};
     BlockRtrOptions options;
     options.max_iterations = config.polish_max_rtr_iterations;
-    options.max_tcg_iterations = config.max_tcg_iterations;
+    options.max_tcg_iterations = config.polish_max_tcg_iterations;
     options.grad_tol = grad_tol;
     options.grad_reduction = 0.0;  // only the global tolerance stops it
     return SolveBlockRtr(problem, options, X).iterations;

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -22,11 +23,15 @@ struct Case {
     const char* file;
     double f_star;
     int robots;
+    /// How far below the listed f* is accepted: SE-Sync's own estimate of parking-garage stops
+    /// 1.3e-6 (1.06e-6 relative) above the certified optimum found here and by `certislam solve`.
+    double below_tol = kRelGapTol;
 };
 
 std::string Name(const testing::TestParamInfo<Case>& info) {
     std::string s = info.param.file;
     s = s.substr(0, s.find('.'));
+    std::replace(s.begin(), s.end(), '-', '_');  // gtest names: alphanumerics and '_' only
     return s + "_robots" + std::to_string(info.param.robots);
 }
 
@@ -58,11 +63,12 @@ TEST_P(RbcdReachesOptimum, RoundedCostWithinRelativeGap) {
     // One-sided: the reference optima are SE-Sync's rounded estimates, stopped at its own
     // tolerance; a certified estimate may be slightly below them (parking-garage is, by 1e-6).
     EXPECT_LE(gap, kRelGapTol);
-    EXPECT_GE(gap, -kRelGapTol);
+    EXPECT_GE(gap, -c.below_tol);
 }
 
-// intel with 5 robots also reached f* here (gap -5.8e-9, 1654 iterations, 63 s on a loaded
-// 2-core machine): too long for the test suite.
+// parking-garage is the ill-conditioned one (metric scale, f* = 1.26): with translations kept
+// explicit, truncated CG stalled at its cap and one robot took 16 s; with them eliminated it is
+// about a second. Its --robots 5 run (about 20 s) is in deploy/solve_all.sh, not here.
 INSTANTIATE_TEST_SUITE_P(
     SmallFiles, RbcdReachesOptimum,
     testing::Values(Case{"tinyGrid3D.g2o", 18.5193868731, 1},
@@ -70,7 +76,9 @@ INSTANTIATE_TEST_SUITE_P(
                     Case{"smallGrid3D.g2o", 1025.39802075, 1},
                     Case{"smallGrid3D.g2o", 1025.39802075, 5}, Case{"CSAIL.g2o", 31.7037159922, 1},
                     Case{"CSAIL.g2o", 31.7037159922, 5}, Case{"MIT.g2o", 61.1541160916, 1},
-                    Case{"MIT.g2o", 61.1541160916, 5}, Case{"intel.g2o", 52.3482275928, 1}),
+                    Case{"MIT.g2o", 61.1541160916, 5}, Case{"intel.g2o", 52.3482275928, 1},
+                    Case{"intel.g2o", 52.3482275928, 5},
+                    Case{"parking-garage.g2o", 1.2624854718, 1, 2e-6}),
     Name);
 
 }  // namespace

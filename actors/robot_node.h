@@ -58,6 +58,8 @@ class RobotNode {
     int LoopsFound() const { return matcher_->LoopsFound(); }
     /// Loops this robot's matcher withdrew (they dropped out of its consistent set).
     int LoopsWithdrawn() const { return matcher_->Withdrawn(); }
+    /// The loop matcher (its counters: verified, rejected, clouds requested, skipped).
+    const LoopMatcherActor& Matcher() const { return *matcher_; }
     /// The TSDF mapper; nullptr when the node runs none.
     MapperActor* Mapper() { return mapper_.get(); }
     /// The robot's id.

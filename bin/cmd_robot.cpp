@@ -91,6 +91,11 @@ int RunRobot(int argc, char** argv) {
         auto report = nlohmann::json::parse(
             WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds));
         report["bytes_sent_by_actor"] = bytes_by_actor;
+        const actors::LoopMatcherActor& matcher = node.Matcher();
+        report["matcher"] = {{"verified", matcher.Verified()},
+                             {"rejected", matcher.Rejected()},
+                             {"clouds_requested", matcher.CloudsRequested()},
+                             {"skipped_by_gate", matcher.Skipped()}};
         if (!mesh.is_null()) report["mesh"] = mesh;
         std::printf("%s\n", report.dump(2).c_str());
         if (!json) std::printf("%s\n", done ? "certified" : "TIMED OUT");

@@ -71,29 +71,53 @@ void CertifierActor::OnStart() {
     Every(config_.period, [this] { Tick(); });
 }
 
+void CertifierActor::ReadBundlesOf(int robot) {
+    if (bundle_streams_.insert(robot).second) OpenClient(Edge::kBundle, robot);
+}
+
 void CertifierActor::SubscribeBundles() {
-    for (int r : Wiring().robots) OpenClient(Edge::kBundle, r);
-    On(v1::SolverStatus::descriptor()->full_name(), [this](const transport::Message& m) {
+    // The anchor reads every robot's bundles (it names them in rounds and checks centrally when
+    // a round falls silent); in distributed mode the others read their own and, once a round
+    // names them, their neighbours' (ReadBundlesOf in OnRound).
+    for (int r : Wiring().robots) {
+        if (anchor_ || r == RobotId()) ReadBundlesOf(r);
+    }
+    const auto count = [this](const transport::Message& m, std::uint32_t robot) {
+        if (int(robot) != RobotId()) {
+            bundle_bytes_.fetch_add(m.ByteSize());
+            CountPeerBytes(m.ByteSize());
+        }
+    };
+    On(v1::SolverStatus::descriptor()->full_name(), [this, count](const transport::Message& m) {
         const auto status = transport::Unpack<v1::SolverStatus>(m);
         if (!status) return false;
+        count(m, status->header().robot_id());
         pending_[int(status->header().robot_id())] = Bundle{*status, {}, {}, 0};
         return true;
     });
-    On(v1::LoopClosure::descriptor()->full_name(), [this](const transport::Message& m) {
+    On(v1::TrajectoryUpdate::descriptor()->full_name(), [count](const transport::Message& m) {
+        const auto update = transport::Unpack<v1::TrajectoryUpdate>(m);
+        if (!update) return false;
+        count(m, update->header().robot_id());  // closes a bundle; the certifier needs none
+        return true;
+    });
+    On(v1::LoopClosure::descriptor()->full_name(), [this, count](const transport::Message& m) {
         const auto proto = transport::Unpack<v1::LoopClosure>(m);
         const auto edge = proto ? FromProto(*proto) : std::nullopt;
         if (!edge) return false;
+        count(m, proto->header().robot_id());
         const auto it = pending_.find(int(proto->header().robot_id()));
         if (it != pending_.end()) it->second.edges.push_back(*edge);
         return true;
     });
-    On(v1::PublicPoses::descriptor()->full_name(), [this](const transport::Message& m) {
+    On(v1::PublicPoses::descriptor()->full_name(), [this, count](const transport::Message& m) {
         const auto proto = transport::Unpack<v1::PublicPoses>(m);
         auto block = proto ? FromProto(*proto) : std::nullopt;
         const int robot = proto ? int(proto->header().robot_id()) : -1;
         if (!block) return false;
         const auto it = pending_.find(robot);
         if (it == pending_.end()) return true;  // joined mid-bundle (or an escape): wait
+        count(m, proto->header().robot_id());
         it->second.block = std::move(*block);
         it->second.digest = Digest(it->second);
         auto& recent = history_[robot];
@@ -117,11 +141,29 @@ void CertifierActor::SubscribeBundles() {
 void CertifierActor::Tick() {
     ResendIfStalled();
     if (!anchor_) return;
+    const auto now = std::chrono::steady_clock::now();
     if (lanczos_ && !lanczos_->Done()) {
-        if (std::chrono::steady_clock::now() - round_progress_ < config_.round_timeout) return;
+        if (round_heard_) stalled_since_.reset();  // a peer took part: not stalled
+        const bool silent = now - round_progress_ >= config_.round_timeout ||
+                            (stalled_since_ && now - *stalled_since_ >= config_.round_timeout);
+        if (!silent) {
+            // Stalled after the re-sends while the bundles changed: a robot may never have had
+            // the named ones (one that just began reading a neighbour's stream): reopen on the
+            // current bundles. The silence clock keeps running from the first stalled round.
+            slam::PoseGraph graph;
+            Eigen::MatrixXd X;
+            if (dirty_ && now - round_progress_ >= 2 * config_.round_resend &&
+                Assemble(&graph, &X)) {
+                dirty_ = false;
+                if (!stalled_since_) stalled_since_ = round_opened_;
+                StartRound();
+            }
+            return;
+        }
         // A robot's certifier stays silent (not running, or lost the round): this graph is
         // checked centrally instead; the next change of a bundle opens a distributed round again.
         lanczos_.reset();
+        stalled_since_.reset();
         ++fallbacks_;
         slam::PoseGraph graph;
         Eigen::MatrixXd X;
@@ -133,6 +175,7 @@ void CertifierActor::Tick() {
     if (!dirty_ || !Assemble(&graph, &X)) return;
     dirty_ = false;
     if (config_.distributed) {
+        stalled_since_.reset();
         StartRound();
     } else {
         CheckCentrally(graph, X, v1::CERTIFICATE_PATH_CENTRALISED);

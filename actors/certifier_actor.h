@@ -13,6 +13,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <vector>
 
 #include "actors/certifier_actor_lanczos.h"
@@ -55,6 +56,9 @@ class CertifierActor final : public NodeActor {
     int Escapes() const { return escapes_.load(); }
     /// Distributed rounds this robot finished.
     int Rounds() const { return rounds_.load(); }
+    /// Bytes of other robots' bundles this certifier received (counted here, in
+    /// BytesSentToPeers() too: the publisher cannot tell its subscribers apart).
+    std::uint64_t BundleBytesFromPeers() const { return bundle_bytes_.load(); }
     /// Anchor: rounds abandoned for a silent robot and checked centrally instead.
     int Fallbacks() const { return fallbacks_.load(); }
     /// The verdict of the last distributed round this robot finished (thread-safe).
@@ -73,6 +77,7 @@ class CertifierActor final : public NodeActor {
     };
     static std::uint64_t Digest(const Bundle& b);
     void SubscribeBundles();
+    void ReadBundlesOf(int robot);
     void Tick();
     bool Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const {
         return Assemble(bundles_, graph, X);
@@ -99,18 +104,24 @@ class CertifierActor final : public NodeActor {
     std::map<int, Bundle> bundles_;                ///< last complete bundle per robot
     std::map<int, std::vector<Bundle>> history_;   ///< recent distinct bundles, newest last
     std::map<int, Bundle> round_bundles_;          ///< anchor: the bundles of the round
+    std::set<int> bundle_streams_;                 ///< robots whose bundle stream it reads
     std::unique_ptr<LanczosParticipant> lanczos_;  ///< the round in progress
     std::uint64_t round_ = 0;                      ///< its id
     std::uint64_t round_edges_ = 0;                ///< edges of its graph
     std::uint32_t round_rank_ = 0;                 ///< its relaxation rank
     std::uint64_t rounds_opened_ = 0;              ///< anchor: rounds opened
     std::chrono::steady_clock::time_point round_progress_{};  ///< last message of the round
-    std::chrono::steady_clock::time_point round_resent_{};    ///< last re-send of a stall
+    std::chrono::steady_clock::time_point round_opened_{};    ///< anchor: when it opened
+    bool round_heard_ = false;  ///< a message of another robot for the round arrived
+    /// anchor: when the first of a run of reopened (stalled) rounds opened
+    std::optional<std::chrono::steady_clock::time_point> stalled_since_;
+    std::chrono::steady_clock::time_point round_resent_{};  ///< last re-send of a stall
     std::vector<transport::Message> round_sent_;   ///< round opening, last vector, last sums
     std::optional<v1::CertificateRound> waiting_;  ///< a round whose bundles are not all here
     std::map<std::uint64_t, std::vector<transport::Message>> early_;  ///< rounds not begun
     std::atomic<int> rounds_{0};
     std::atomic<int> fallbacks_{0};
+    std::atomic<std::uint64_t> bundle_bytes_{0};
     mutable std::mutex verdict_mutex_;
     std::optional<DistributedVerdict> verdict_;
     bool dirty_ = false;

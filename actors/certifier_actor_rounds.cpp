@@ -2,6 +2,7 @@
 // the named bundles and runs its share of Lanczos over CertificateVector/CertificateReduction.
 #include <chrono>
 #include <iterator>
+#include <set>
 
 #include "actors/certifier_actor.h"
 #include "certify/saddle_escape.h"
@@ -80,20 +81,39 @@ void CertifierActor::StartRound() {
                         .count();
     round.set_round(static_cast<std::uint64_t>(ms) * 1000 + (++rounds_opened_ % 1000));
     round.set_rank_r(static_cast<std::uint32_t>(bundles_.begin()->second.block.blocks.rows()));
+    std::map<int, std::set<int>> neighbors;  // robots sharing an edge
+    for (const auto& [robot, b] : bundles_) {
+        for (const auto& e : b.edges) {
+            if (e.a.robot == e.b.robot) continue;
+            neighbors[e.a.robot].insert(e.b.robot);
+            neighbors[e.b.robot].insert(e.a.robot);
+        }
+    }
     for (const auto& [robot, b] : bundles_) {
         auto* ref = round.add_bundles();
         ref->set_robot_id(static_cast<std::uint32_t>(robot));
         ref->set_digest(b.digest);
+        for (int n : neighbors[robot]) ref->add_neighbors(static_cast<std::uint32_t>(n));
     }
     Send(*out_, transport::Pack(round), true);
+    round_opened_ = std::chrono::steady_clock::now();
     OnRound(round);
     round_sent_.insert(round_sent_.begin(), transport::Pack(round));
 }
 
 void CertifierActor::OnRound(const v1::CertificateRound& round) {
     if (lanczos_ && round.round() == round_) return;  // a re-sent opening
+    // The anchor uses every bundle; the others their own and their neighbours' (read from now on).
+    std::set<int> needed;
+    for (const auto& ref : round.bundles()) {
+        if (int(ref.robot_id()) != RobotId()) continue;
+        needed.insert(RobotId());
+        for (const auto n : ref.neighbors()) needed.insert(int(n));
+    }
+    for (int r : needed) ReadBundlesOf(r);
     std::map<int, const Bundle*> chosen;
     for (const auto& ref : round.bundles()) {
+        if (!anchor_ && !needed.count(int(ref.robot_id()))) continue;
         const Bundle* b = nullptr;
         for (const auto& candidate : history_[int(ref.robot_id())]) {
             if (candidate.digest == ref.digest()) b = &candidate;
@@ -136,6 +156,7 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
         for (const auto& [robot, b] : chosen) round_bundles_[robot] = *b;
     }
     round_progress_ = std::chrono::steady_clock::now();
+    round_heard_ = false;
     round_sent_.clear();
     const auto send_vector = [this](int step, const std::vector<slam::PoseId>& ids,
                                     const Eigen::VectorXd& values) {
@@ -186,6 +207,7 @@ void CertifierActor::Deliver(const transport::Message& m) {
     }
     if (lanczos_->Done()) return;
     round_progress_ = std::chrono::steady_clock::now();
+    round_heard_ = true;
     if (vector) {
         std::vector<slam::PoseId> ids;
         for (const auto& id : vector->pose_ids()) {

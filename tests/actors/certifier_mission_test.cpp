@@ -95,7 +95,10 @@ TEST(CertifierMission, DistributedRoundsCertifyATwoRobotMissionInTime) {
         << "steps " << anchor.steps;
     EXPECT_GT(anchor.steps, 0);
     EXPECT_GT(anchor.entries_sent, 0.0);
-    for (auto& c : certifiers) EXPECT_GE(c->Rounds(), 1);
+    for (auto& c : certifiers) {
+        EXPECT_GE(c->Rounds(), 1);
+        EXPECT_GT(c->BundleBytesFromPeers(), 0u);  // each reads its neighbour's bundles
+    }
 }
 
 }  // namespace

@@ -39,8 +39,8 @@ variants/dpgo/CSAIL.g2o 31.4703317764 -
 variants/dpgo/kitti_00.g2o 125.680707744 -
 LIST
 
-echo "| file | robots | cost | f* | rel. gap | certified | suboptimality bound | iterations | seconds | SE-Sync s | ratio |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| file | robots | cost | f* | rel. gap | certified | suboptimality bound | iterations | seconds | CPU s | SE-Sync s | ratio (wall) |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
 while read -r file fstar sesync; do
     if [ $# -gt 0 ] && ! printf '%s\n' "$@" | grep -qx "$file"; then continue; fi
     for robots in $robots_list; do
@@ -49,7 +49,7 @@ while read -r file fstar sesync; do
         rc=$?
         if [ $rc -ne 0 ] || [ -z "$json" ]; then
             reason="exit $rc"; [ $rc -eq 124 ] && reason="timeout ${timeout_s} s"
-            echo "| $file | $robots | - | $fstar | - | - | - | - | $reason | $sesync | - |"
+            echo "| $file | $robots | - | $fstar | - | - | - | - | $reason | - | $sesync | - |"
             continue
         fi
         printf '%s\n' "$json" | python3 -c 'import json,sys; print(json.dumps(json.load(sys.stdin)))' >> "$out"
@@ -60,9 +60,9 @@ file, robots, fstar, sesync = sys.argv[1], sys.argv[2], float(sys.argv[3]), sys.
 cost = j["cost"]
 gap = (cost - fstar) / fstar if fstar > 0 else cost
 ratio = "%.1fx" % (j["seconds"] / float(sesync)) if sesync != "-" else "-"
-print("| %s | %s | %.10g | %.10g | %+.2e | %s | %.2e | %d | %.2f | %s | %s |" % (
+print("| %s | %s | %.10g | %.10g | %+.2e | %s | %.2e | %d | %.2f | %.2f | %s | %s |" % (
     file, robots, cost, fstar, gap, "yes" if j["certified"] else "**no**",
-    j["suboptimality_bound"], j["iterations"], j["seconds"], sesync, ratio))
+    j["suboptimality_bound"], j["iterations"], j["seconds"], j["cpu_seconds"], sesync, ratio))
 ' "$file" "$robots" "$fstar" "$sesync"
     done
 done <<< "$table"

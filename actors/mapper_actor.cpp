@@ -3,6 +3,8 @@
 // only when it just moved); peers' submaps in -> the same map.
 #include "actors/mapper_actor.h"
 
+#include <zstd.h>
+
 #include <future>
 #include <memory>
 #include <stdexcept>
@@ -13,6 +15,7 @@
 #include "actors/ingest_actor.h"
 #include "certislam/v1/control.pb.h"
 #include "certislam/v1/map.pb.h"
+#include "slam/check.h"
 
 namespace certislam::actors {
 namespace {
@@ -20,6 +23,31 @@ namespace {
 constexpr double kMovedTranslation_m = 1e-4;  // anchor changes below these are not sent
 constexpr double kMovedRotation_rad = 1e-5;
 constexpr auto kMeshWait = std::chrono::seconds(120);
+constexpr std::uint64_t kMaxSubmapBytes = 1ull << 30;  // a peer's claimed size beyond: dropped
+
+/// The zstd frame of `payload` at `level`.
+std::string Compress(const std::string& payload, int level) {
+    std::string out(ZSTD_compressBound(payload.size()), '\0');
+    const std::size_t n =
+        ZSTD_compress(out.data(), out.size(), payload.data(), payload.size(), level);
+    CERTISLAM_CHECK(!ZSTD_isError(n));
+    out.resize(n);
+    return out;
+}
+
+/// The payload of a MapUpdate's frame; nullopt when the compression is unknown or the frame lies.
+std::optional<std::string> Payload(const v1::MapUpdate& update, std::string_view frame) {
+    if (update.compression() == v1::MAP_COMPRESSION_NONE) return std::string(frame);
+    if (update.compression() != v1::MAP_COMPRESSION_ZSTD) return std::nullopt;
+    const std::uint64_t size = update.uncompressed_byte_length();
+    if (size > kMaxSubmapBytes || ZSTD_getFrameContentSize(frame.data(), frame.size()) != size) {
+        return std::nullopt;
+    }
+    std::string out(size, '\0');
+    const std::size_t n = ZSTD_decompress(out.data(), out.size(), frame.data(), frame.size());
+    if (ZSTD_isError(n) || n != size) return std::nullopt;
+    return out;
+}
 
 bool Moved(const Eigen::Isometry3d& before, const Eigen::Isometry3d& after) {
     const Eigen::Isometry3d d = before.inverse() * after;
@@ -34,6 +62,10 @@ void MapperConfig::Validate() const {
     if (publish_period.count() <= 0) {
         throw std::invalid_argument("MapperConfig.publish_period = " +
                                     std::to_string(publish_period.count()) + " ms: must be > 0");
+    }
+    if (zstd_level < 0 || zstd_level > 19) {
+        throw std::invalid_argument("MapperConfig.zstd_level = " + std::to_string(zstd_level) +
+                                    ": must be in [0, 19]");
     }
     if (active_submap_quiet.count() < 0) {
         throw std::invalid_argument(
@@ -194,9 +226,11 @@ bool MapperActor::OnMapUpdate(const transport::Message& m) {
         return false;
     }
     const auto& frame = m.frames[index];
+    const auto payload = Payload(
+        *proto, std::string_view(reinterpret_cast<const char*>(frame.data()), frame.size()));
+    if (!payload) return false;
     std::string error;
-    auto submap = slam::DeserializeSubmap(
-        std::string_view(reinterpret_cast<const char*>(frame.data()), frame.size()), &error);
+    auto submap = slam::DeserializeSubmap(*payload, &error);
     if (!submap || !(submap->id == id) || !(submap->anchor == *anchor)) return false;
     submap->T_world_submap = *T;
     map_.AddSubmap(std::move(*submap));
@@ -239,12 +273,15 @@ void MapperActor::Publish() {
         update.set_voxel_size_m(static_cast<float>(s.volume.config().voxel_size_m));
         std::vector<transport::SharedBuffer> frames;
         if (dirty) {  // the submap stream compresses its voxels itself (OpenVDB + blosc)
-            const std::string payload = slam::SerializeSubmap(s);
+            const std::string raw = slam::SerializeSubmap(s);
+            const std::string payload =
+                config_.zstd_level > 0 ? Compress(raw, config_.zstd_level) : raw;
             update.set_kind(v1::MAP_PAYLOAD_KIND_TSDF_BLOCKS);
-            update.set_compression(v1::MAP_COMPRESSION_NONE);
+            update.set_compression(config_.zstd_level > 0 ? v1::MAP_COMPRESSION_ZSTD
+                                                          : v1::MAP_COMPRESSION_NONE);
             update.set_frame_index(0);
             update.set_byte_length(payload.size());
-            update.set_uncompressed_byte_length(payload.size());
+            update.set_uncompressed_byte_length(raw.size());
             frames.push_back(transport::SharedBuffer::Copy(payload.data(), payload.size()));
             bytes += payload.size();
             dirty_.erase(s.id);

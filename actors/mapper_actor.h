@@ -41,6 +41,9 @@ struct MapperConfig {
     /// ended, or no keyframe came for this long (>= 0): a growing submap is not re-sent whole
     /// on every publish tick.
     std::chrono::milliseconds active_submap_quiet{1000};
+    /// zstd level of submap payloads on the wire, [0, 19] (0: uncompressed). The OpenVDB stream
+    /// is already blosc-compressed; zstd 3 on top halves it again (2.2-2.4x on simulated submaps).
+    int zstd_level = 3;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;

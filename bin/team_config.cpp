@@ -63,6 +63,7 @@ void ReadMapping(const json& j, const std::string& path, actors::RobotNodeConfig
     Read(j, "voxel_m", &node->mapper.map.tsdf.voxel_size_m);
     Read(j, "submap_distance_m", &node->mapper.map.submap_distance_m);
     Read(j, "share_submaps", &node->mapper.share);
+    Read(j, "zstd_level", &node->mapper.zstd_level);
     const std::string team_map = j.value("team_map", "anchor");
     if (team_map == "anchor") {
         node->mapper.team_map = actors::TeamMap::kAnchor;

@@ -6,6 +6,8 @@
 // receives submaps, and a growing submap's bytes go out once, not on every publish tick.
 #include <gtest/gtest.h>
 
+#include <zstd.h>
+
 #include <thread>
 
 #include "actors/codec.h"
@@ -180,6 +182,48 @@ TEST(MapperConfig, RejectsANegativeActiveSubmapQuiet) {
     MapperConfig config;
     config.active_submap_quiet = std::chrono::milliseconds(-1);
     EXPECT_THROW(config.Validate(), std::invalid_argument);
+}
+
+/// Robot 1's wall as one serialized submap, zstd-compressed, in a MapUpdate that says so.
+transport::Message CompressedWallUpdate(std::uint64_t declared_size) {
+    slam::TsdfMap map(1);
+    for (int i = 0; i < kScans; ++i) {  // the scans robot 1's mapper fuses in the test above
+        const slam::Keyframe kf = WallKeyframe(1, i);
+        map.Insert(i, kf.T_odom_sensor, *kf.cloud);
+    }
+    const std::string raw = slam::SerializeSubmap(map.submaps().front());
+    std::string z(ZSTD_compressBound(raw.size()), '\0');
+    z.resize(ZSTD_compress(z.data(), z.size(), raw.data(), raw.size(), 3));
+    v1::MapUpdate update;
+    *update.mutable_header() = MakeHeader(1, 1, 0);
+    update.set_submap_id(0);
+    *update.mutable_anchor_pose_id() = ToProto(slam::PoseId{1, 0});
+    *update.mutable_t_world_anchor() = ToProto(Eigen::Isometry3d::Identity());
+    update.set_kind(v1::MAP_PAYLOAD_KIND_TSDF_BLOCKS);
+    update.set_compression(v1::MAP_COMPRESSION_ZSTD);
+    update.set_frame_index(0);
+    update.set_byte_length(z.size());
+    update.set_uncompressed_byte_length(declared_size == 0 ? raw.size() : declared_size);
+    return transport::Pack(update, {transport::SharedBuffer::Copy(z.data(), z.size())});
+}
+
+// Untrusted map bytes: a zstd frame whose declared size lies is dropped and counted; the honest
+// frame of the same submap is decompressed and fused.
+TEST(MapperActor, CompressedSubmapWithALyingSizeIsDroppedAndTheHonestOneFused) {
+    zmq::context_t context;
+    const std::vector<int> ids{0, 1};
+    MapperActor m0(context, InprocWiring(0, ids), MapperConfig{});
+    transport::Endpoint peer(context, ServerConfig(InprocWiring(1, ids), Edge::kMap));
+    m0.Start();
+    ASSERT_TRUE(peer.WaitForSubscribers(1, std::chrono::seconds(5)));
+    ASSERT_EQ(peer.Send(CompressedWallUpdate(12345)), transport::SendStatus::kSent);
+    ASSERT_TRUE(WaitFor([&] { return m0.Counters().dropped_malformed == 1; }));
+    EXPECT_EQ(m0.Stats().peer_submaps, 0);
+    ASSERT_EQ(peer.Send(CompressedWallUpdate(0)), transport::SendStatus::kSent);
+    ASSERT_TRUE(WaitFor([&] { return m0.Stats().peer_submaps == 1; }));
+    EXPECT_GT(WallVertices(m0.FusedMesh(0.2), kWallX_m / 2).second, 50);
+    EXPECT_EQ(m0.Counters().dropped_malformed, 1u);
+    m0.Stop();
 }
 
 }  // namespace

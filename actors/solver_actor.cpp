@@ -171,8 +171,10 @@ void SolverActor::Tick() {
     local_ok_ = step.status == SolverStepResult::Status::kLocalOk;
     // Converged against the last poses heard: wait for news instead of spinning.
     work_ = !local_ok_ && step.status != SolverStepResult::Status::kStuck;
-    if (!local_ok_) bundle_dirty_ = true;
-    if (!local_ok_ || step.rebuilt) Publish();
+    // A step that moved the block is published at once even when it ends below tolerance:
+    // otherwise the team's last refinements travel only with the heartbeat.
+    if (!local_ok_ || step.moved) bundle_dirty_ = true;
+    if (!local_ok_ || step.rebuilt || step.moved) Publish();
     const auto now = std::chrono::steady_clock::now();
     if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
     UpdateSnapshot();

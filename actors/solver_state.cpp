@@ -304,6 +304,7 @@ SolverStepResult SolverState::Step(double team_cost) {
     result.grad_norm = s.rtr_iterations == 0 ? s.grad_norm_before : s.grad_norm_after;
     result.cost = m.OwnCost();
     using A = slam::RbcdAgentStatus::Status;
+    result.moved = s.status == A::kImproved;
     result.status = s.status == A::kImproved    ? SolverStepResult::Status::kImproved
                     : s.status == A::kConverged ? SolverStepResult::Status::kLocalOk
                                                 : SolverStepResult::Status::kStuck;

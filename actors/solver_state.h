@@ -41,6 +41,7 @@ struct SolverStepResult {
     double grad_norm = 0.0;  ///< block Riemannian gradient norm after the step
     double cost = 0.0;       ///< this robot's share of f (edges whose tail is its own pose)
     bool rebuilt = false;    ///< the graph changed and the agent was rebuilt (warm start)
+    bool moved = false;      ///< the block moved (also when it ends below tolerance: kLocalOk)
 };
 
 /// One robot's share of the team's pose graph and of RBCD.

@@ -17,7 +17,12 @@ namespace certislam::certify {
 
 /// Settings of SolveCertified.
 struct StaircaseConfig {
-    slam::RbcdConfig rbcd;          ///< solver at every rank
+    /// Solver at every rank; truncated CG stops at half the gradient tolerance at the latest.
+    slam::RbcdConfig rbcd = [] {
+        slam::RbcdConfig c;
+        c.tcg_residual_floor = 0.5;
+        return c;
+    }();
     CertificateConfig certificate;  ///< verdict at every rank
     EscapeConfig escape;            ///< line search of each escape
     int max_rank = 10;              ///< give up above this rank, >= the rank of X0

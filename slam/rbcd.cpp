@@ -46,6 +46,8 @@ void RbcdConfig::Validate() const {
             "must be >= 0");
     Require(polish_max_rtr_iterations >= 1, "polish_max_rtr_iterations", polish_max_rtr_iterations,
             "must be >= 1");
+    Require(tcg_residual_floor >= 0.0 && tcg_residual_floor < 1.0, "tcg_residual_floor",
+            tcg_residual_floor, "must be in [0, 1)");
     Require(polish_max_tcg_iterations >= 1, "polish_max_tcg_iterations", polish_max_tcg_iterations,
             "must be >= 1");
 }
@@ -200,6 +202,7 @@ RbcdAgentStatus RbcdAgent::Update(double grad_tol) {
     BlockRtrOptions options;
     options.max_iterations = m.config.block_max_rtr_iterations;
     options.max_tcg_iterations = m.config.max_tcg_iterations;
+    options.tcg_residual_floor = m.config.tcg_residual_floor;
     options.grad_tol = grad_tol;
     options.grad_reduction = m.config.block_grad_reduction;
     const BlockRtrOutcome o = SolveBlockRtr(m.Problem(), options, &m.X);

@@ -120,7 +120,7 @@ struct TcgResult {
 // Manopt's residual target r0 min(r0, kappa) uses the gradient's absolute size: on a problem
 // whose gradient is already small it asks for far more accuracy than the stopping test needs
 // (parking-garage: relative residual 4e-6 for a gradient that had to drop 30x). The target is
-// therefore never below half the trust region's gradient tolerance (`floor`).
+// therefore never below `floor` (BlockRtrOptions::tcg_residual_floor * the gradient tolerance).
 TcgResult TruncatedCg(const BlockProblem& p, const Iterate& it, double radius, int max_iter,
                       double floor) {
     TcgResult out;
@@ -261,7 +261,8 @@ BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& opti
     const double max_radius = 1e3 * std::max(radius, 1e-12);
     while (out.iterations < options.max_iterations && it.grad_norm > tol && radius > 1e-14) {
         ++out.iterations;
-        const TcgResult step = TruncatedCg(p, it, radius, options.max_tcg_iterations, 0.5 * tol);
+        const TcgResult step = TruncatedCg(p, it, radius, options.max_tcg_iterations,
+                                           options.tcg_residual_floor * tol);
         Eigen::MatrixXd X_new = Retract(it.X, step.eta, p.d);
         if (p.elim != nullptr) p.elim->OptimizeTranslations(&X_new, p.G);
         const CostChange change = CostDifference(p, it.X, X_new);

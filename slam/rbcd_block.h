@@ -74,6 +74,8 @@ struct BlockProblem {
 struct BlockRtrOptions {
     int max_iterations = 5;        ///< trust-region steps, >= 1
     int max_tcg_iterations = 100;  ///< Steihaug-CG iterations per step, >= 1
+    /// CG stops at the latest at residual <= this * the gradient tolerance (0: Manopt's rule)
+    double tcg_residual_floor = 0.0;
     double grad_tol = 0.0;         ///< stop when ||rgrad|| <= this
     double grad_reduction = 1e-2;  ///< or when ||rgrad|| <= this * initial ||rgrad||
 };

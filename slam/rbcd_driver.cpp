@@ -148,6 +148,7 @@ int Polish(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partiti
     BlockRtrOptions options;
     options.max_iterations = config.polish_max_rtr_iterations;
     options.max_tcg_iterations = config.polish_max_tcg_iterations;
+    options.tcg_residual_floor = config.tcg_residual_floor;
     options.grad_tol = grad_tol;
     options.grad_reduction = 0.0;  // only the global tolerance stops it
     return SolveBlockRtr(problem, options, X).iterations;

@@ -76,10 +76,16 @@ int RunDemo(int argc, char** argv) {
     app.add_option("--actors-timeout", options.actors_timeout_s,
                    "seconds the actor graph gets to be certified and quiet")
         ->check(CLI::PositiveNumber);
+    std::string certificate = "distributed";
+    app.add_option("--certificate", certificate,
+                   "distributed (every robot its rows of S, Lanczos over the sockets; default) or "
+                   "centralised (the anchor checks the joint certificate alone; faster)")
+        ->check(CLI::IsMember({"distributed", "centralised"}));
     app.add_flag("--quiet", options.quiet, "no progress bar");
     app.add_flag("--json", options.json, "print the report as JSON");
     CLI11_PARSE(app, argc, argv);
     options.actors = !pipeline_only;
+    options.distributed_certificate = certificate == "distributed";
     const DemoReport report = RunDemoMission(options);
     if (options.json) {
         std::printf("%s\n", DemoReportJson(report).dump(2).c_str());

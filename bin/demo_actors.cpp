@@ -15,15 +15,16 @@ namespace {
 
 /// deploy/configs/sim2.json's settings, but every keyframe queries (like the direct pipeline's
 /// query_stride 1) and registration as the pipeline's loop stage sets it (0.4 m voxels).
-actors::RobotNodeConfig DemoConfig(double voxel_m) {
+actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate) {
     actors::RobotNodeConfig config;
     config.mapping = voxel_m > 0;
     if (config.mapping) config.mapper.map.tsdf.voxel_size_m = voxel_m;
     config.solver.solver.rank = 5;
     config.solver.solver.rbcd.rel_grad_tol = 1e-9;
     // The certifiers run the distributed check (every robot its rows of S; the default), the
-    // anchor's centralised check only as the fallback of a silent round.
-    config.certifier.distributed = true;
+    // anchor's centralised check only as the fallback of a silent round; false: the anchor's
+    // centralised check alone (`certislam demo --certificate centralised`).
+    config.certifier.distributed = distributed_certificate;
     config.matcher.query_stride = 1;
     config.matcher.max_sc_distance = 0.2;
     config.matcher.registration.voxel_m = 0.4;
@@ -93,7 +94,7 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
 }  // namespace
 
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
-                                    double timeout_s, double voxel_m,
+                                    double timeout_s, double voxel_m, bool distributed_certificate,
                                     const ActorProgress& progress) {
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
@@ -103,7 +104,7 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
         ids.push_back(static_cast<int>(r));
         total += robots[r].size();
     }
-    const actors::RobotNodeConfig config = DemoConfig(voxel_m);
+    const actors::RobotNodeConfig config = DemoConfig(voxel_m, distributed_certificate);
     zmq::context_t context;
     std::vector<std::unique_ptr<actors::RobotNode>> nodes;
     for (int r : ids) {

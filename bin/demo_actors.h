@@ -46,6 +46,7 @@ using ActorProgress = std::function<void(const std::string& stage, double fracti
 /// mappers run with voxels of `voxel_m` (0: no mapper, no mesh).
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
                                     double timeout_s, double voxel_m,
+                                    bool distributed_certificate = true,
                                     const ActorProgress& progress = {});
 
 }  // namespace certislam::bin

@@ -368,7 +368,7 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     std::optional<ActorMissionResult> run;
     if (actors) {
         run = RunThroughActors(
-            team.robots, options.actors_timeout_s, options.voxel_m,
+            team.robots, options.actors_timeout_s, options.voxel_m, options.distributed_certificate,
             [&](const std::string& stage, double f) { bar.Update(stage, 0.5 + 0.35 * f); });
         methods[3].second = run->trajectory;
     }

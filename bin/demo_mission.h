@@ -17,6 +17,8 @@ struct DemoOptions {
     bool sequential = true;            ///< robot r starts when robot r-1 has finished
     bool actors = true;  ///< certified row from the actor graph (false: the pipeline directly)
     double actors_timeout_s = 300.0;  ///< give the actor graph this long
+    /// Certifiers run the distributed check (false: the anchor's centralised check alone).
+    bool distributed_certificate = true;
     double tunnel_slip = 0.05;        ///< odometry under-estimates motion in the tunnel by this
     double voxel_m = 0.4;             ///< TSDF voxel of the fused mesh (0: no mesh)
     bool ground_truth_loops = false;  ///< ground-truth loop closures (said loudly)

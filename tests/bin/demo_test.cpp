@@ -143,6 +143,13 @@ TEST(DemoOptions, KeyframesFlagShortensTheMission) {
     for (const auto& row : j["robots"]) EXPECT_EQ(row["keyframes"].get<int>(), kShortKeyframes);
 }
 
+TEST(DemoOptions, RejectsAnUnknownCertificateMode) {
+    const auto run =
+        testing::Shell(std::string(CERTISLAM_BINARY) + " demo --certificate central 2>&1");
+    EXPECT_NE(run.exit_code, 0);
+    EXPECT_NE(run.out.find("--certificate"), std::string::npos) << run.out;
+}
+
 TEST(DemoOptions, RejectsZeroRobots) {
     const auto run = testing::Shell(std::string(CERTISLAM_BINARY) + " demo --robots 0 2>&1");
     EXPECT_NE(run.exit_code, 0);

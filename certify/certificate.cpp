@@ -85,8 +85,11 @@ class PsdTest {
 
 /// Tightens the verified eta (the lower bound f* >= tr(Lambda) - eta d n) after the eigen-
 /// solve: the smallest eta worth trying is a small multiple of |lambda_min| (S + eta D is not
-/// PSD below -lambda_min), so one factorization there usually settles it; if it fails, eta
-/// steps down from the verdict's by kBoundRefinementFactor as far as it still factorizes.
+/// PSD below -lambda_min), so one factorization there usually settles it; if it fails (D
+/// shifts rotation entries only, so the eta needed can exceed 4 |lambda_min|), eta steps down
+/// from the verdict's by kBoundRefinementFactor as far as it still factorizes (then up to
+/// 1 + bound_refinements factorizations, the old ladder's count plus one). Every eta passed to
+/// set_bound was verified PSD right before.
 template <typename SetBound>
 void RefineBound(const CertificateConfig& config, double eta, double lambda_min, PsdTest* psd,
                  const SetBound& set_bound) {

@@ -71,7 +71,7 @@ struct RbcdAgent::Impl {
     Eigen::SparseMatrix<double> Qna;  // rows: neighbour poses' columns (compacted); cols: own
     BlockFactor factor;
     std::unique_ptr<HessianPreconditioner> hessian;  // borrows Qaa (stable: Impl is on the heap)
-    std::unique_ptr<TranslationElimination> elim;    // borrows Qaa too
+    std::unique_ptr<TranslationElimination> elim;    // its own copy of Qaa's T columns
     std::vector<int> neighbor_ids;
     std::vector<int> public_ids;
     std::vector<int> public_local;  // local pose index of each public pose
@@ -156,7 +156,10 @@ RbcdAgent::RbcdAgent(const Eigen::SparseMatrix<double>& Q, int d, const Partitio
     CERTISLAM_CHECK(m.factor.info() == Eigen::Success);
     if (config.hessian_preconditioner)
         m.hessian = std::make_unique<HessianPreconditioner>(m.Qaa, d);
-    if (config.eliminate_translations) m.elim = std::make_unique<TranslationElimination>(m.Qaa, d);
+    if (config.eliminate_translations) {
+        m.elim = std::make_unique<TranslationElimination>(m.Qaa, d, m.Qna.nonZeros() == 0);
+        if (!m.elim->valid()) m.elim.reset();  // Q_TT singular beyond the gauge: explicit
+    }
     m.X = Eigen::MatrixXd::Zero(rank, cols);
     m.G = Eigen::MatrixXd::Zero(rank, cols);
 }

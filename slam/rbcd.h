@@ -28,7 +28,8 @@ struct RbcdConfig {
     /// instead of 0.95 CPU s). 0: Manopt's rule alone, so a solve ends far below its tolerance
     /// (the actors keep 0: a team's in-process and multi-process runs must agree to 1e-6, and
     /// with 0.5 they differed by up to 2e-6 in 2 of 12 runs).
-    /// certify::StaircaseConfig (`certislam solve`) sets 0.5. In [0, 1).
+    /// certify::StaircaseConfig's default (`certislam solve` without --robust) sets 0.5; the
+    /// GNC inner solves of --robust keep 0. In [0, 1).
     double tcg_residual_floor = 0.0;
     int max_iterations = 2000;   ///< outer RBCD iterations, >= 1
     double max_seconds = 600.0;  ///< wall-clock limit, > 0
@@ -44,12 +45,14 @@ struct RbcdConfig {
     bool hessian_preconditioner = false;
     /// Each block update eliminates its translations exactly (SE-Sync's reduced problem): the
     /// trust region runs on the rotations with the Schur complement of Q_TT, and the Q_aa
-    /// preconditioner becomes the exact inverse of the reduced Euclidean Hessian. false: the
+    /// preconditioner becomes the inverse of the reduced Euclidean Hessian (up to its regulariser
+    /// and the factor 2; not of the Riemannian Hessian, which adds the curvature term). false: the
     /// explicit problem over rotations and translations.
     bool eliminate_translations = true;
     /// Multi-robot: after this many RBCD iterations without convergence (or an earlier stall),
-    /// finish with distributed second-order steps: a trust region on the whole X whose Hessian-
-    /// vector products need only neighbours' entries (as RBCD's linear terms do) and whose
+    /// finish with second-order steps: a trust region on the whole X whose Hessian-vector
+    /// products need neighbours' entries (as RBCD's linear terms do) and, with
+    /// eliminate_translations (the default), a global translation solve (below), and whose
     /// preconditioner is block Jacobi (each robot's own Cholesky of Q_aa); inner products are
     /// sums of one scalar per robot. Block coordinate descent alone has a slow linear tail on
     /// graphs with strong inter-robot coupling (parking-garage). With eliminate_translations

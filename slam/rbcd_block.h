@@ -82,8 +82,8 @@ struct BlockRtrOptions {
 
 /// What a block solve did.
 struct BlockRtrOutcome {
-    double cost_before = 0.0;       ///< block cost at the start
-    double cost_after = 0.0;        ///< block cost at the end
+    double cost_before = 0.0;  ///< block cost at the start (after translation elimination, if on)
+    double cost_after = 0.0;   ///< block cost at the end
     double grad_norm_before = 0.0;  ///< ||rgrad|| at the start
     double grad_norm_after = 0.0;   ///< ||rgrad|| at the end
     int iterations = 0;             ///< trust-region steps tried

@@ -143,7 +143,10 @@ int Polish(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partiti
     CERTISLAM_CHECK(factor.info() == Eigen::Success);
     const Eigen::MatrixXd no_linear_term;
     std::unique_ptr<TranslationElimination> elim;
-    if (config.eliminate_translations) elim = std::make_unique<TranslationElimination>(Q, d);
+    if (config.eliminate_translations) {
+        elim = std::make_unique<TranslationElimination>(Q, d, /*anchor_gauge=*/true);
+        if (!elim->valid()) elim.reset();
+    }
     const BlockProblem problem{&Q, &no_linear_term, &factor, d, nullptr, elim.get()};
     BlockRtrOptions options;
     options.max_iterations = config.polish_max_rtr_iterations;

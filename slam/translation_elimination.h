@@ -12,13 +12,20 @@
 namespace certislam::slam {
 
 /// Translation columns T and rotation columns R of a block's Q ((d+1)k x (d+1)k, pose-major),
-/// with a sparse Cholesky of Q_TT (k x k, the translation Laplacian of the block). Where Q_TT is
-/// singular (a block with no neighbour: the translation gauge), the first translation is anchored
-/// (any minimiser is as good: the cost does not change along the gauge).
+/// copied, with a sparse Cholesky of Q_TT (k x k, the translation Laplacian of the block; rebuild
+/// the object if Q changes). A block with no neighbour (or a whole graph) has the translation
+/// gauge as a null direction of Q_TT: the caller says so and the first translation is anchored
+/// (any minimiser is as good: the cost does not change along the gauge; the returned X then has
+/// its first translation at the optimum of the anchored problem, not in the input's gauge).
 class TranslationElimination {
   public:
-    /// Q is borrowed for the object's lifetime; d the dimension.
-    TranslationElimination(const Eigen::SparseMatrix<double>& Q, int d);
+    /// d the dimension; anchor_gauge: Q_TT has the translation gauge as null direction (a
+    /// block without neighbours). valid() is false when Q_TT still does not factorise (a
+    /// block whose own graph falls apart): callers then keep the explicit problem.
+    TranslationElimination(const Eigen::SparseMatrix<double>& Q, int d, bool anchor_gauge);
+
+    /// Q_TT factorised: the elimination can be used.
+    bool valid() const { return valid_; }
 
     /// Sets X's translation columns to their optimum for its rotation columns:
     /// X_T = -(X_R Q_RT + G_T) Q_TT^{-1}; G null or empty: no linear term.
@@ -38,6 +45,7 @@ class TranslationElimination {
 
     int d_;
     int k_;
+    bool valid_ = false;
     Eigen::SparseMatrix<double>
         Q_RT_;  // (d+1)k x k: Q's translation columns, translation rows zeroed
     Eigen::CholmodDecomposition<Eigen::SparseMatrix<double>, Eigen::Lower> factor_;  // of Q_TT

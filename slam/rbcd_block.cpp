@@ -27,8 +27,10 @@ struct Iterate {
     double grad_norm = 0.0;
 };
 
-Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X) {
-    if (p.elim != nullptr) p.elim->OptimizeTranslations(&X, p.G);
+// translations_optimal: X already has its optimal translations (an accepted trial point), so
+// the elimination's solve is not repeated.
+Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X, bool translations_optimal = false) {
+    if (p.elim != nullptr && !translations_optimal) p.elim->OptimizeTranslations(&X, p.G);
     Iterate it;
     it.egrad = X * (*p.Q);
     it.cost = Inner(it.egrad, X);
@@ -279,7 +281,7 @@ BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& opti
             radius = std::min(2.0 * radius, max_radius);
         }
         if (rho > 0.1 && change.value <= reg) {
-            it = Evaluate(p, std::move(X_new));
+            it = Evaluate(p, std::move(X_new), /*translations_optimal=*/true);
             if (p.hessian != nullptr) p.hessian->Refactor(it.X, it.egrad);
             ++out.accepted;
         }

@@ -12,7 +12,9 @@ n="${1:?usage: deploy/robots.sh N CONFIG [OUT_DIR]}"
 config="${2:?usage: deploy/robots.sh N CONFIG [OUT_DIR]}"
 out="${3:-$root/out/robots}"
 bin="${CERTISLAM:-${BUILD_DIR:-$root/build}/bin/certislam}"
-base_port="${CERTISLAM_BASE_PORT:-47000}"
+# Below Linux's ephemeral range (32768-60999): a client retrying a port that is not bound yet
+# could otherwise be handed that port as its own source (TCP self-connection) and take it.
+base_port="${CERTISLAM_BASE_PORT:-27000}"
 timeout_s="${CERTISLAM_TIMEOUT:-300}"
 [ -x "$bin" ] || { echo "robots.sh: no certislam binary at $bin (build first)" >&2; exit 1; }
 mkdir -p "$out/keys"

@@ -21,6 +21,10 @@ void CertifierConfig::Validate() const {
     if (round_timeout.count() <= 0) {
         throw std::invalid_argument("CertifierConfig.round_timeout: must be > 0");
     }
+    if (!(settled_move_relative >= 0.0)) {
+        throw std::invalid_argument("CertifierConfig.settled_move_relative = " +
+                                    std::to_string(settled_move_relative) + ": must be >= 0");
+    }
     if (lanczos.max_krylov < 2 || lanczos.check_every < 1 || !(lanczos.tolerance > 0.0)) {
         throw std::invalid_argument(
             "CertifierConfig.lanczos: max_krylov >= 2, check_every >= 1, tolerance > 0");
@@ -56,6 +60,47 @@ std::uint64_t CertifierActor::Digest(const Bundle& b) {
         Mix(&h, &e.tau, sizeof(e.tau));
     }
     return h;
+}
+
+std::uint64_t CertifierActor::GraphDigest(const Bundle& b) {
+    std::uint64_t h = 14695981039346656037ull;
+    for (const auto& id : b.block.ids) Mix(&h, &id, sizeof(id));
+    const Eigen::Index rank = b.block.blocks.rows();
+    Mix(&h, &rank, sizeof(rank));
+    for (const auto& e : b.edges) {
+        Mix(&h, &e.a, sizeof(e.a));
+        Mix(&h, &e.b, sizeof(e.b));
+        Mix(&h, e.T_a_b.matrix().data(), sizeof(double) * 16);
+        Mix(&h, &e.kappa, sizeof(e.kappa));
+        Mix(&h, &e.tau, sizeof(e.tau));
+    }
+    return h;
+}
+
+bool CertifierActor::SettledSinceCertified() const {
+    // The certified round proved f* >= tr(Lambda) - eta d n for its graph; that bound holds for
+    // any X on the same graph, and a block within a small relative move of the certified one
+    // changes f by at most 2 ||X Q|| ||dX|| + ||Q|| ||dX||^2: no new round is worth its bytes.
+    // A new edge, a withdrawn one, a new pose, a new rank (escape) or a larger move re-checks.
+    if (certified_bundles_.empty() || certified_bundles_.size() != bundles_.size()) return false;
+    for (const auto& [robot, b] : bundles_) {
+        const auto it = certified_bundles_.find(robot);
+        if (it == certified_bundles_.end()) return false;
+        const Bundle& c = it->second;
+        if (b.status.phase() != c.status.phase() || GraphDigest(b) != GraphDigest(c) ||
+            b.block.blocks.rows() != c.block.blocks.rows() ||
+            b.block.blocks.cols() != c.block.blocks.cols()) {
+            return false;
+        }
+        const double moved = (b.block.blocks - c.block.blocks).norm();
+        if (moved > config_.settled_move_relative * c.block.blocks.norm()) return false;
+    }
+    return true;
+}
+
+void CertifierActor::NoteVerdict(bool certified, const std::map<int, Bundle>& bundles) {
+    certified_bundles_.clear();
+    if (certified) certified_bundles_ = bundles;
 }
 
 CertifierActor::CertifierActor(zmq::context_t& context, TeamWiring wiring, CertifierConfig config)
@@ -174,6 +219,10 @@ void CertifierActor::Tick() {
     Eigen::MatrixXd X;
     if (!dirty_ || !Assemble(&graph, &X)) return;
     dirty_ = false;
+    if (SettledSinceCertified()) {
+        ++skipped_;
+        return;
+    }
     if (config_.distributed) {
         stalled_since_.reset();
         StartRound();
@@ -226,6 +275,7 @@ void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::M
     const auto Q = slam::ConnectionLaplacian(graph);
     const auto result = certify::Certify(Q, X, 3, config_.certificate);
     ++checks_;
+    NoteVerdict(result.status == certify::CertificateResult::Status::kCertified, bundles_);
     auto report = ToProto(result, static_cast<std::uint32_t>(X.rows()));
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     report.set_iteration(graph.edges.size());  // which graph: its edge count

@@ -37,6 +37,11 @@ struct CertifierConfig {
                                                     ///< re-sent (a peer may have joined late)
     bool cross_check = false;  ///< anchor, distributed: also checks every round's graph
                                ///< centrally (DistributedVerdict::central_lambda_min; tests)
+    /// After a certified verdict no new check opens while the graph (every edge), the rank and
+    /// the pose ids are those certified and no robot's block moved more than this, relative to
+    /// the block's Frobenius norm, from its certified value (the certified lower bound on f*
+    /// depends on the graph only). >= 0; 0: any move re-checks.
+    double settled_move_relative = 1e-6;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -61,6 +66,12 @@ class CertifierActor final : public NodeActor {
     std::uint64_t BundleBytesFromPeers() const { return bundle_bytes_.load(); }
     /// Anchor: rounds abandoned for a silent robot and checked centrally instead.
     int Fallbacks() const { return fallbacks_.load(); }
+    /// Lanczos steps (S v products, each one neighbour exchange and two sums) of every round
+    /// this robot finished.
+    std::uint64_t LanczosSteps() const { return lanczos_steps_.load(); }
+    /// Anchor: changed bundles not re-checked because they stayed at a certified solution
+    /// (CertifierConfig::settled_move_relative).
+    int SettledSkips() const { return skipped_.load(); }
     /// The verdict of the last distributed round this robot finished (thread-safe).
     std::optional<DistributedVerdict> LastVerdict() const;
 
@@ -76,6 +87,9 @@ class CertifierActor final : public NodeActor {
         std::uint64_t digest = 0;  ///< hash of the contents (equal for re-sent copies)
     };
     static std::uint64_t Digest(const Bundle& b);
+    static std::uint64_t GraphDigest(const Bundle& b);
+    bool SettledSinceCertified() const;
+    void NoteVerdict(bool certified, const std::map<int, Bundle>& bundles);
     void SubscribeBundles();
     void ReadBundlesOf(int robot);
     void Tick();
@@ -125,6 +139,10 @@ class CertifierActor final : public NodeActor {
     mutable std::mutex verdict_mutex_;
     std::optional<DistributedVerdict> verdict_;
     bool dirty_ = false;
+    /// anchor: the bundles of the last verdict when it was certified (empty otherwise)
+    std::map<int, Bundle> certified_bundles_;
+    std::atomic<int> skipped_{0};
+    std::atomic<std::uint64_t> lanczos_steps_{0};
     int level_ = 0;
     std::atomic<int> checks_{0};
     std::atomic<int> escapes_{0};

@@ -261,7 +261,9 @@ void CertifierActor::RoundFinished() {
     }
     ++rounds_;
     ++checks_;
+    lanczos_steps_ += static_cast<std::uint64_t>(verdict.steps);
     if (!anchor_) return;
+    NoteVerdict(verdict.status == DistributedVerdict::Status::kCertified, round_bundles_);
     v1::CertificateReport report;
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     report.set_verdict(VerdictOf(verdict.status));

@@ -60,6 +60,8 @@ class RobotNode {
     int LoopsWithdrawn() const { return matcher_->Withdrawn(); }
     /// The loop matcher (its counters: verified, rejected, clouds requested, skipped).
     const LoopMatcherActor& Matcher() const { return *matcher_; }
+    /// The certifier (its counters: rounds, Lanczos steps, skipped re-checks).
+    const CertifierActor& Certifier() const { return *certifier_; }
     /// The TSDF mapper; nullptr when the node runs none.
     MapperActor* Mapper() { return mapper_.get(); }
     /// The robot's id.

@@ -96,6 +96,11 @@ int RunRobot(int argc, char** argv) {
                              {"rejected", matcher.Rejected()},
                              {"clouds_requested", matcher.CloudsRequested()},
                              {"skipped_by_gate", matcher.Skipped()}};
+        const actors::CertifierActor& certifier = node.Certifier();
+        report["certifier"] = {{"rounds", certifier.Rounds()},
+                               {"lanczos_steps", certifier.LanczosSteps()},
+                               {"settled_skips", certifier.SettledSkips()},
+                               {"fallbacks", certifier.Fallbacks()}};
         if (!mesh.is_null()) report["mesh"] = mesh;
         std::printf("%s\n", report.dump(2).c_str());
         if (!json) std::printf("%s\n", done ? "certified" : "TIMED OUT");

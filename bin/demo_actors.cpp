@@ -89,6 +89,10 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
         }
     }
     result->team_inter_robot_loops = loop_ends / 2;
+    const actors::CertifierActor& anchor = nodes.front()->Certifier();
+    result->certificate_rounds = anchor.Rounds();
+    result->lanczos_steps = anchor.LanczosSteps();
+    result->settled_skips = anchor.SettledSkips();
 }
 
 }  // namespace

@@ -35,7 +35,10 @@ struct ActorMissionResult {
     slam::TriangleMesh mesh;  ///< robot 0's mapper: every robot's submaps fused, team frame
     int submaps = 0;          ///< submaps in robot 0's map (own + received)
     std::uint64_t map_bytes_sent = 0;  ///< compressed submap bytes the mappers sent to peers
-    double seconds = 0.0;              ///< start to done
+    int certificate_rounds = 0;        ///< distributed rounds robot 0's certifier finished
+    std::uint64_t lanczos_steps = 0;   ///< their Lanczos steps (S v exchanges), all rounds
+    int settled_skips = 0;  ///< changed bundles robot 0 did not re-check (settled, certified)
+    double seconds = 0.0;   ///< start to done
 };
 
 /// Progress of the run: stage and fraction done in [0, 1].

@@ -302,6 +302,9 @@ void FillFromActors(const ActorMissionResult& run, const std::vector<double>& rm
                            {"solver_steps", run.solver_steps},
                            {"map_submaps", run.submaps},
                            {"map_bytes_sent", run.map_bytes_sent},
+                           {"certificate_rounds", run.certificate_rounds},
+                           {"lanczos_steps", run.lanczos_steps},
+                           {"settled_skips", run.settled_skips},
                            {"mesh_triangles", run.mesh.triangles.size()},
                            {"anchor", run.anchor},
                            {"rmse_certified", rmse}};

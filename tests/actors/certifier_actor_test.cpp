@@ -66,7 +66,9 @@ TeamWiring Wiring(int robot, int robots, bool tcp) {
     for (int r = 0; r < robots; ++r) team.push_back(r);
     TeamWiring w = InprocWiring(robot, team);
     if (!tcp) return w;
-    const int base = 20000 + static_cast<int>(getpid() % 2000) * 20;
+    // Below Linux's ephemeral range (32768-60999), apart from test_bin_distributed's 20000-32000:
+    // a client retrying a port not yet bound cannot be handed that port as its source.
+    const int base = 32000 + static_cast<int>(getpid() % 30) * 25;  // 3 robots: 24 ports
     for (int r = 0; r < robots; ++r) {
         int port = base + 8 * r;
         for (auto& [edge, address] : w.addresses[r]) {
@@ -232,6 +234,59 @@ TEST(CertifierModes, CentralisedAndDistributedReportTheSameVerdictToTheSolvers) 
             EXPECT_EQ(report->iteration(), p.graph.edges.size());
         }
     }
+}
+
+/// Sends every bundle for `period` (one batch per kResend).
+void FeedFor(BundleFeeder& feeder, std::chrono::milliseconds period) {
+    const auto until = std::chrono::steady_clock::now() + period;
+    while (std::chrono::steady_clock::now() < until) {
+        feeder.SendAll();
+        std::this_thread::sleep_for(kResend);
+    }
+}
+
+TEST(CertifierSettled, NoNewRoundForASettledSolutionUntilTheGraphChanges) {
+    constexpr double kTinyMove = 1e-9;  ///< relative block move, far below settled_move_relative
+    constexpr auto kQuiet = std::chrono::milliseconds(2000);  ///< several round lengths
+    TeamProblem p = CertifiedSphere(2);
+    zmq::context_t context;
+    CertifierConfig config;
+    config.max_staircase_steps = 0;
+    std::vector<std::unique_ptr<CertifierActor>> certifiers;
+    for (int r = 0; r < 2; ++r) {
+        certifiers.push_back(
+            std::make_unique<CertifierActor>(context, Wiring(r, 2, false), config));
+    }
+    BundleFeeder feeder(context, p, false);
+    for (auto& c : certifiers) c->Start();
+    const CertifierActor& anchor = *certifiers[0];
+    const auto deadline = std::chrono::steady_clock::now() + kTimeout;
+    while (!anchor.LastVerdict() && std::chrono::steady_clock::now() < deadline) {
+        FeedFor(feeder, kResend);
+    }
+    ASSERT_TRUE(anchor.LastVerdict().has_value());
+    ASSERT_EQ(anchor.LastVerdict()->status, DistributedVerdict::Status::kCertified);
+    const int rounds = anchor.Rounds();
+
+    // The solvers' blocks still creep after the verdict: new bundles, no new round.
+    p.X *= 1.0 + kTinyMove;
+    FeedFor(feeder, kQuiet);
+    EXPECT_GE(anchor.SettledSkips(), 1) << "the moved bundles were not noticed";
+    EXPECT_EQ(anchor.Rounds(), rounds) << "a settled solution was checked again";
+
+    // A new edge (a second copy of the first inter-robot one): the graph changed, a round runs.
+    for (const auto& e : p.graph.edges) {
+        if (p.partition.RobotOf(e.i) != p.partition.RobotOf(e.j)) {
+            p.graph.edges.push_back(e);
+            break;
+        }
+    }
+    const auto again = std::chrono::steady_clock::now() + kTimeout;
+    while (anchor.Rounds() == rounds && std::chrono::steady_clock::now() < again) {
+        FeedFor(feeder, kResend);
+    }
+    EXPECT_GT(anchor.Rounds(), rounds) << "a new edge did not re-open the check";
+    for (auto& c : certifiers) c->Stop();
 }
 
 INSTANTIATE_TEST_SUITE_P(Transports, CertifierTeam,

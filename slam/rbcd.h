@@ -63,6 +63,13 @@ struct RbcdConfig {
     /// 5 measured fastest of {5, 10, 30} on sphere2500, torus3D, cubicle, city10000 and
     /// parking-garage with 5 robots (BENCHMARKS.md). 0 disables; >= 0.
     int polish_after_iterations = 5;
+    /// The finish's preconditioner (slam/schwarz_preconditioner.h): block Jacobi (each robot's
+    /// own Cholesky of Q_aa) until one truncated CG needs more than polish_escalate_after
+    /// iterations, then overlapping additive Schwarz, each robot's domain its own poses and those
+    /// within polish_overlap edges of them. polish_overlap >= 0 (0: block Jacobi throughout),
+    /// polish_escalate_after >= 1.
+    int polish_overlap = 2;
+    int polish_escalate_after = 50;
     int polish_max_rtr_iterations = 300;  ///< trust-region steps of the finish, >= 1
     /// Steihaug-CG iterations per step of the finish, >= 1: block Jacobi needs many to carry
     /// information across robots (parking-garage --robots 5: 100 left every step at its cap

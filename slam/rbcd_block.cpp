@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "slam/check.h"
+#include "slam/schwarz_preconditioner.h"
 #include "slam/stiefel.h"
 
 namespace certislam::slam {
@@ -100,7 +101,9 @@ Eigen::MatrixXd Precondition(const BlockProblem& p, const Iterate& it, const Eig
     // Column-major right-hand side: Eigen's sparse triangular solves are slow on row-major ones.
     const Eigen::MatrixXd Vt = V.transpose();
     Eigen::MatrixXd Zt;
-    if (p.hessian != nullptr && p.hessian->valid()) {
+    if (p.schwarz != nullptr) {
+        Zt = p.schwarz->Solve(Vt);
+    } else if (p.hessian != nullptr && p.hessian->valid()) {
         Zt = p.hessian->Solve(Vt);
     } else {
         Zt = p.precon->solve(Vt);
@@ -116,6 +119,7 @@ struct TcgResult {
     Eigen::MatrixXd eta;
     Eigen::MatrixXd Heta;
     bool hit_boundary = false;
+    int iterations = 0;
 };
 
 // Steihaug-Toint truncated CG in the preconditioner's norm (Manopt tCG, theta = 1, kappa = 0.1).
@@ -136,6 +140,7 @@ TcgResult TruncatedCg(const BlockProblem& p, const Iterate& it, double radius, i
     const double r0 = r.norm();
     const double stop = std::max(r0 * std::min(r0, 0.1), floor);
     for (int j = 0; j < max_iter; ++j) {
+        out.iterations = j + 1;
         const Eigen::MatrixXd Hd = Hessian(p, it, delta);
         const double dHd = Inner(delta, Hd);
         const double alpha = rz / dHd;
@@ -251,7 +256,7 @@ double BlockGradNorm(const BlockProblem& problem, const Eigen::MatrixXd& X) {
 
 BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& options,
                               Eigen::MatrixXd* X) {
-    CERTISLAM_CHECK(p.Q && p.precon && X);
+    CERTISLAM_CHECK(p.Q && (p.precon || p.schwarz) && X);
     Iterate it = Evaluate(p, *X);
     if (p.hessian != nullptr) p.hessian->Refactor(it.X, it.egrad);
     BlockRtrOutcome out;
@@ -261,10 +266,14 @@ BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& opti
     // Initial radius: the preconditioned gradient's size, about the Newton step's (M-norm).
     double radius = std::sqrt(std::max(Inner(it.rgrad, Precondition(p, it, it.rgrad)), 0.0));
     const double max_radius = 1e3 * std::max(radius, 1e-12);
+    int last_tcg_iterations = 0;
     while (out.iterations < options.max_iterations && it.grad_norm > tol && radius > 1e-14) {
         ++out.iterations;
+        // Told only when another CG run follows: an escalation right before the end is wasted.
+        if (p.schwarz != nullptr) p.schwarz->ReportCgIterations(last_tcg_iterations);
         const TcgResult step = TruncatedCg(p, it, radius, options.max_tcg_iterations,
                                            options.tcg_residual_floor * tol);
+        last_tcg_iterations = step.iterations;
         Eigen::MatrixXd X_new = Retract(it.X, step.eta, p.d);
         if (p.elim != nullptr) p.elim->OptimizeTranslations(&X_new, p.G);
         const CostChange change = CostDifference(p, it.X, X_new);

@@ -11,6 +11,8 @@
 
 namespace certislam::slam {
 
+class SchwarzPreconditioner;
+
 /// Sparse Cholesky of Q_aa + lambda I, factorised once per block, used as preconditioner.
 /// CHOLMOD's supernodal LL^T: its BLAS triangular solves on the r right-hand sides are several
 /// times faster than Eigen's simplicial ones, which dominated the solve time.
@@ -60,7 +62,7 @@ class HessianPreconditioner {
 struct BlockProblem {
     const Eigen::SparseMatrix<double>* Q = nullptr;  ///< Q_aa, (d+1)k x (d+1)k
     const Eigen::MatrixXd* G = nullptr;              ///< linear term r x (d+1)k (zero: none)
-    const BlockFactor* precon = nullptr;             ///< factor of Q_aa + lambda I
+    const BlockFactor* precon = nullptr;             ///< factor of Q_aa + lambda I (or schwarz)
     int d = 3;                                       ///< dimension
     /// Optional Hessian preconditioner (refactorised at each iterate); null: `precon` only.
     HessianPreconditioner* hessian = nullptr;
@@ -68,6 +70,9 @@ struct BlockProblem {
     /// rotations alone (tangent vectors have zero translation columns) and every iterate has
     /// optimal translations; null: the explicit problem over rotations and translations.
     const TranslationElimination* elim = nullptr;
+    /// Optional overlapping Schwarz preconditioner (the multi-robot finish), used instead of
+    /// `precon` and `hessian`; told each truncated CG's iteration count (it may escalate).
+    SchwarzPreconditioner* schwarz = nullptr;
 };
 
 /// Settings of one block solve.

@@ -11,6 +11,7 @@
 #include "slam/connection_laplacian.h"
 #include "slam/rbcd.h"
 #include "slam/rbcd_block.h"
+#include "slam/schwarz_preconditioner.h"
 #include "slam/stiefel.h"
 
 namespace certislam::slam {
@@ -104,50 +105,23 @@ Evaluation Evaluate(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd&
     return e;
 }
 
-// Q without the entries between poses of different robots, regularised like an agent's factor:
-// the block-Jacobi preconditioner, one independent block per robot (each robot's own Q_aa).
-Eigen::SparseMatrix<double> BlockDiagonal(const Eigen::SparseMatrix<double>& Q, int d,
-                                          const Partition& partition, double regulariser) {
-    const int b = d + 1;
-    std::vector<int> robot_of(Q.cols() / b);
-    for (int k = 0; k < partition.num_robots(); ++k) {
-        for (int i = partition.begin[k]; i < partition.begin[k + 1]; ++i) robot_of[i] = k;
-    }
-    std::vector<Eigen::Triplet<double>> triplets;
-    triplets.reserve(Q.nonZeros() + Q.cols());
-    double max_diag = 0.0;
-    for (int c = 0; c < Q.outerSize(); ++c) {
-        for (Eigen::SparseMatrix<double>::InnerIterator it(Q, c); it; ++it) {
-            const int row = static_cast<int>(it.row());
-            if (robot_of[row / b] != robot_of[c / b]) continue;
-            triplets.emplace_back(row, c, it.value());
-            if (row == c) max_diag = std::max(max_diag, it.value());
-        }
-    }
-    const double shift = regulariser * (max_diag > 0.0 ? max_diag : 1.0);
-    for (int c = 0; c < Q.cols(); ++c) triplets.emplace_back(c, c, shift);
-    Eigen::SparseMatrix<double> M(Q.rows(), Q.cols());
-    M.setFromTriplets(triplets.begin(), triplets.end());
-    return M;
-}
-
 // The distributed finish (RbcdConfig::polish_after_iterations): trust-region steps on the whole
 // X. Per truncated-CG iteration each robot computes its own columns of V Q (its neighbours'
-// columns of V in, as for RBCD's linear term) and applies its own factor of Q_aa; the inner
+// columns of V in, as for RBCD's linear term) and applies its own factor of the Schwarz
+// preconditioner (block Jacobi first, overlapping once CG needs many iterations); the inner
 // products are sums of one scalar per robot. Run here in one process on the assembled X.
 int Polish(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partition,
            const RbcdConfig& config, double grad_tol, Eigen::MatrixXd* X) {
-    BlockFactor factor;
-    factor.setMode(Eigen::CholmodSupernodalLLt);
-    factor.compute(BlockDiagonal(Q, d, partition, config.precon_regulariser));
-    CERTISLAM_CHECK(factor.info() == Eigen::Success);
+    SchwarzPreconditioner schwarz(Q, d, partition, config.polish_overlap,
+                                  config.polish_escalate_after, config.precon_regulariser);
     const Eigen::MatrixXd no_linear_term;
     std::unique_ptr<TranslationElimination> elim;
     if (config.eliminate_translations) {
         elim = std::make_unique<TranslationElimination>(Q, d, /*anchor_gauge=*/true);
         if (!elim->valid()) elim.reset();
     }
-    const BlockProblem problem{&Q, &no_linear_term, &factor, d, nullptr, elim.get()};
+    BlockProblem problem{&Q, &no_linear_term, nullptr, d, nullptr, elim.get()};
+    problem.schwarz = &schwarz;
     BlockRtrOptions options;
     options.max_iterations = config.polish_max_rtr_iterations;
     options.max_tcg_iterations = config.polish_max_tcg_iterations;

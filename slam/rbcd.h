@@ -53,8 +53,9 @@ struct RbcdConfig {
     /// finish with second-order steps: a trust region on the whole X whose Hessian-vector
     /// products need neighbours' entries (as RBCD's linear terms do) and, with
     /// eliminate_translations (the default), a global translation solve (below), and whose
-    /// preconditioner is block Jacobi (each robot's own Cholesky of Q_aa); inner products are
-    /// sums of one scalar per robot. Block coordinate descent alone has a slow linear tail on
+    /// preconditioner is each robot's own factor (block Jacobi, overlapping Schwarz once CG
+    /// needs many iterations: polish_overlap below); inner products are sums of one scalar per
+    /// robot. Block coordinate descent alone has a slow linear tail on
     /// graphs with strong inter-robot coupling (parking-garage). With eliminate_translations
     /// the finish eliminates the translations of the whole graph: each Hessian-vector product
     /// then also needs Q_TT^{-1} (the scalar translation Laplacian) applied to r vectors, done

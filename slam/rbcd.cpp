@@ -154,7 +154,7 @@ RbcdAgent::RbcdAgent(const Eigen::SparseMatrix<double>& Q, int d, const Partitio
     Eigen::SparseMatrix<double> M = m.Qaa;
     for (int c = 0; c < cols; ++c)
         M.coeffRef(c, c) += config.precon_regulariser * (max_diag > 0.0 ? max_diag : 1.0);
-    m.factor.setMode(Eigen::CholmodSupernodalLLt);
+    m.factor.setMode(Eigen::CholmodSimplicialLLt);
     m.factor.compute(M);
     CERTISLAM_CHECK(m.factor.info() == Eigen::Success);
     if (config.hessian_preconditioner)

@@ -19,6 +19,13 @@ constexpr double kNoiseMultiple = 10.0;  ///< rho regularisation in units of the
 
 double Inner(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) { return A.cwiseProduct(B).sum(); }
 
+// V Q for the symmetric Q, computed as (Q V^T)^T: Eigen's sparse x column-major dense product is
+// faster than dense x sparse (parking-garage, r = 3: 0.58 against 0.96 ms).
+Eigen::MatrixXd TimesQ(const Eigen::MatrixXd& V, const Eigen::SparseMatrix<double>& Q) {
+    const Eigen::MatrixXd Vt = V.transpose();
+    return (Q * Vt).transpose();
+}
+
 // The state at one iterate: cost, Euclidean and Riemannian gradients.
 struct Iterate {
     Eigen::MatrixXd X;
@@ -33,7 +40,7 @@ struct Iterate {
 Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X, bool translations_optimal = false) {
     if (p.elim != nullptr && !translations_optimal) p.elim->OptimizeTranslations(&X, p.G);
     Iterate it;
-    it.egrad = X * (*p.Q);
+    it.egrad = TimesQ(X, *p.Q);
     it.cost = Inner(it.egrad, X);
     if (p.G && p.G->size() > 0) {
         it.cost += 2.0 * Inner(X, *p.G);
@@ -48,7 +55,7 @@ Iterate Evaluate(const BlockProblem& p, Eigen::MatrixXd X, bool translations_opt
 }
 
 double CostOnly(const BlockProblem& p, const Eigen::MatrixXd& X) {
-    double f = Inner(X * (*p.Q), X);
+    double f = Inner(TimesQ(X, *p.Q), X);
     if (p.G && p.G->size() > 0) f += 2.0 * Inner(X, *p.G);
     return f;
 }
@@ -65,7 +72,7 @@ struct CostChange {
 CostChange CostDifference(const BlockProblem& p, const Eigen::MatrixXd& X,
                           const Eigen::MatrixXd& X_new) {
     const Eigen::MatrixXd D = X_new - X;
-    const Eigen::MatrixXd DQ = D * (*p.Q);
+    const Eigen::MatrixXd DQ = TimesQ(D, *p.Q);
     const Eigen::MatrixXd sum = X_new + X;
     CostChange c;
     c.value = Inner(DQ, sum);
@@ -88,10 +95,10 @@ Eigen::MatrixXd Hessian(const BlockProblem& p, const Iterate& it, const Eigen::M
     if (p.elim != nullptr) {  // the reduced Hessian: V's translations follow its rotations
         Eigen::MatrixXd lifted = V;
         p.elim->Lift(&lifted);
-        H = 2.0 * (lifted * (*p.Q));
+        H = 2.0 * TimesQ(lifted, *p.Q);
         p.elim->ZeroTranslations(&H);
     } else {
-        H = 2.0 * (V * (*p.Q));
+        H = 2.0 * TimesQ(V, *p.Q);
     }
     H -= WeingartenTerm(it.X, it.egrad, V, p.d);
     return ProjectToTangent(it.X, H, p.d);

@@ -102,7 +102,7 @@ void SchwarzPreconditioner::Build(int overlap) {
     for (int k = 0; k < partition_.num_robots(); ++k) {
         domains_.push_back(ExtendedDomain(adj, partition_, k, overlap));
         factors_.push_back(std::make_unique<BlockFactor>());
-        factors_.back()->setMode(Eigen::CholmodSupernodalLLt);
+        factors_.back()->setMode(Eigen::CholmodSimplicialLLt);
         factors_.back()->compute(Restrict(*Q_, b, domains_.back(), shift_));
         CERTISLAM_CHECK(factors_.back()->info() == Eigen::Success);
     }

@@ -34,7 +34,7 @@ TranslationElimination::TranslationElimination(const Eigen::SparseMatrix<double>
     Q_RT_.resize(Q.rows(), k_);
     Q_RT_.setFromTriplets(rt.begin(), rt.end());
     factor_.cholmod().print = 0;
-    factor_.setMode(Eigen::CholmodSupernodalLLt);
+    factor_.setMode(Eigen::CholmodSimplicialLLt);
     factor_.compute(Q_TT);
     valid_ = factor_.info() == Eigen::Success;
 }

@@ -211,25 +211,29 @@ void SolverActor::Heartbeat() {
 }
 
 void SolverActor::SendBundle() {
-    // Order on the stream: status, own edges, then the full block that closes the bundle.
-    v1::SolverStatus status;
-    *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-    status.set_iteration(steps_);
     bool final = keyframes_ended_;
     for (int r : Wiring().robots) final = final && loops_ended_.count(r) > 0;
-    status.set_phase(final ? v1::SolverStatus::PHASE_CONVERGED : v1::SolverStatus::PHASE_ITERATING);
-    status.set_rank_r(static_cast<std::uint32_t>(state_.Rank()));
-    status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
-    status.set_gradient_norm(grad_norm_);
-    Send(*bundle_out_, transport::Pack(status), false);
-    for (const auto& edge : state_.OwnEdges()) {
-        auto proto = ToProto(edge);
-        *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-        Send(*bundle_out_, transport::Pack(proto), false);
+    // Status, own edges, then the full block that closes the bundle: only once this robot is
+    // final. The certifiers check only when every robot is (CertifierActor::Assemble), so an
+    // earlier bundle was bytes for nothing (with 3 robots in the demo most of the bytes sent).
+    if (final) {
+        v1::SolverStatus status;
+        *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+        status.set_iteration(steps_);
+        status.set_phase(v1::SolverStatus::PHASE_CONVERGED);
+        status.set_rank_r(static_cast<std::uint32_t>(state_.Rank()));
+        status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
+        status.set_gradient_norm(grad_norm_);
+        Send(*bundle_out_, transport::Pack(status), false);
+        for (const auto& edge : state_.OwnEdges()) {
+            auto proto = ToProto(edge);
+            *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+            Send(*bundle_out_, transport::Pack(proto), false);
+        }
+        auto block = ToProto(state_.FullBlock(steps_));
+        *block.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+        Send(*bundle_out_, transport::Pack(block), false);
     }
-    auto block = ToProto(state_.FullBlock(steps_));
-    *block.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-    Send(*bundle_out_, transport::Pack(block), false);
     // After the bundle: the rounded trajectory for the mapper (the certifier ignores it).
     int anchor = RobotId();
     const auto poses = state_.Trajectory(ComponentAnchor(RobotId(), team_loops_), &anchor);

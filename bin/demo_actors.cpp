@@ -72,6 +72,9 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
         result->loops_found.push_back(node->LoopsFound());
         result->solver_steps.push_back(snapshot.steps);
         result->bytes_sent += node->BytesSentToPeers();
+        for (const auto& [actor, bytes] : node->BytesSentToPeersByActor()) {
+            result->bytes_by_actor[actor] += bytes;
+        }
         if (!snapshot.report) {
             result->certified = false;
             continue;

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -38,7 +39,8 @@ struct ActorMissionResult {
     int certificate_rounds = 0;        ///< distributed rounds robot 0's certifier finished
     std::uint64_t lanczos_steps = 0;   ///< their Lanczos steps (S v exchanges), all rounds
     int settled_skips = 0;  ///< changed bundles robot 0 did not re-check (settled, certified)
-    double seconds = 0.0;   ///< start to done
+    std::map<std::string, std::uint64_t> bytes_by_actor;  ///< bytes_sent per actor, all robots
+    double seconds = 0.0;                                 ///< start to done
 };
 
 /// Progress of the run: stage and fraction done in [0, 1].

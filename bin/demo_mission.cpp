@@ -305,6 +305,7 @@ void FillFromActors(const ActorMissionResult& run, const std::vector<double>& rm
                            {"certificate_rounds", run.certificate_rounds},
                            {"lanczos_steps", run.lanczos_steps},
                            {"settled_skips", run.settled_skips},
+                           {"bytes_by_actor", run.bytes_by_actor},
                            {"mesh_triangles", run.mesh.triangles.size()},
                            {"anchor", run.anchor},
                            {"rmse_certified", rmse}};

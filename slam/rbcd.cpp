@@ -44,7 +44,8 @@ void RbcdConfig::Validate() const {
     Require(precon_regulariser > 0.0, "precon_regulariser", precon_regulariser, "must be > 0");
     Require(polish_after_iterations >= 0, "polish_after_iterations", polish_after_iterations,
             "must be >= 0");
-    Require(polish_overlap >= 0, "polish_overlap", polish_overlap, "must be >= 0");
+    Require(polish_overlap >= 0 && polish_overlap <= 8, "polish_overlap", polish_overlap,
+            "must be in [0, 8]");
     Require(polish_escalate_after >= 1, "polish_escalate_after", polish_escalate_after,
             "must be >= 1");
     Require(polish_max_rtr_iterations >= 1, "polish_max_rtr_iterations", polish_max_rtr_iterations,

@@ -264,6 +264,7 @@ double BlockGradNorm(const BlockProblem& problem, const Eigen::MatrixXd& X) {
 BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& options,
                               Eigen::MatrixXd* X) {
     CERTISLAM_CHECK(p.Q && (p.precon || p.schwarz) && X);
+    CERTISLAM_CHECK(p.schwarz == nullptr || p.hessian == nullptr);  // one preconditioner
     Iterate it = Evaluate(p, *X);
     if (p.hessian != nullptr) p.hessian->Refactor(it.X, it.egrad);
     BlockRtrOutcome out;
@@ -278,8 +279,10 @@ BlockRtrOutcome SolveBlockRtr(const BlockProblem& p, const BlockRtrOptions& opti
         ++out.iterations;
         // Told only when another CG run follows: an escalation right before the end is wasted.
         if (p.schwarz != nullptr) p.schwarz->ReportCgIterations(last_tcg_iterations);
-        const TcgResult step = TruncatedCg(p, it, radius, options.max_tcg_iterations,
-                                           options.tcg_residual_floor * tol);
+        const int cg_cap = p.schwarz != nullptr
+                               ? p.schwarz->IterationCap(options.max_tcg_iterations)
+                               : options.max_tcg_iterations;
+        const TcgResult step = TruncatedCg(p, it, radius, cg_cap, options.tcg_residual_floor * tol);
         last_tcg_iterations = step.iterations;
         Eigen::MatrixXd X_new = Retract(it.X, step.eta, p.d);
         if (p.elim != nullptr) p.elim->OptimizeTranslations(&X_new, p.G);

@@ -3,6 +3,7 @@
 #include "slam/schwarz_preconditioner.h"
 
 #include <algorithm>
+#include <utility>
 
 #include "slam/check.h"
 
@@ -34,7 +35,7 @@ std::vector<int> ExtendedDomain(const std::vector<std::vector<int>>& adj,
         in[i] = 1;
         frontier.push_back(i);
     }
-    for (int level = 0; level < overlap; ++level) {
+    for (int level = 0; level < overlap && !frontier.empty(); ++level) {
         std::vector<int> next;
         for (int i : frontier) {
             for (int j : adj[i]) {
@@ -58,20 +59,20 @@ Eigen::SparseMatrix<double> Restrict(const Eigen::SparseMatrix<double>& Q, int b
                                      const std::vector<int>& domain, double shift) {
     std::vector<int> local(Q.cols() / b, -1);
     for (size_t i = 0; i < domain.size(); ++i) local[domain[i]] = static_cast<int>(i);
+    const int m = b * static_cast<int>(domain.size());
     std::vector<Eigen::Triplet<double>> triplets;
-    for (size_t li = 0; li < domain.size(); ++li) {
+    triplets.reserve(static_cast<size_t>(m) * b * 4);
+    for (int li = 0; li < static_cast<int>(domain.size()); ++li) {
         for (int a = 0; a < b; ++a) {
             const int c = b * domain[li] + a;
             for (Eigen::SparseMatrix<double>::InnerIterator it(Q, c); it; ++it) {
-                const int lj = local[it.row() / b];
-                if (lj < 0) continue;
-                triplets.emplace_back(b * lj + static_cast<int>(it.row()) % b,
-                                      b * static_cast<int>(li) + a, it.value());
+                const int row = static_cast<int>(it.row());
+                const int lj = local[row / b];
+                if (lj >= 0) triplets.emplace_back(b * lj + row % b, b * li + a, it.value());
             }
             triplets.emplace_back(b * li + a, b * li + a, shift);
         }
     }
-    const int m = b * static_cast<int>(domain.size());
     Eigen::SparseMatrix<double> A(m, m);
     A.setFromTriplets(triplets.begin(), triplets.end());
     return A;
@@ -89,33 +90,41 @@ SchwarzPreconditioner::SchwarzPreconditioner(const Eigen::SparseMatrix<double>& 
       escalate_after_(escalate_after) {
     CERTISLAM_CHECK(Q.cols() == (d + 1) * partition.begin.back() && max_overlap >= 0 &&
                     escalate_after > 0 && regulariser > 0.0);
+    for (int k = 0; k < partition.num_robots(); ++k) CERTISLAM_CHECK(partition.size(k) > 0);
     const double max_diag = Q.diagonal().maxCoeff();
     shift_ = regulariser * (max_diag > 0.0 ? max_diag : 1.0);
-    Build(0);
+    CERTISLAM_CHECK(Build(0));  // blocks of Q_s = Q + shift I are positive definite
 }
 
-void SchwarzPreconditioner::Build(int overlap) {
+bool SchwarzPreconditioner::Build(int overlap) {
     const int b = d_ + 1;
-    const auto adj = PoseAdjacency(*Q_, b);
-    domains_.clear();
-    factors_.clear();
+    std::vector<std::vector<int>> adj(partition_.begin.back());
+    if (overlap > 0) adj = PoseAdjacency(*Q_, b);
+    std::vector<std::vector<int>> domains;
+    std::vector<std::unique_ptr<BlockFactor>> factors;
     for (int k = 0; k < partition_.num_robots(); ++k) {
-        domains_.push_back(ExtendedDomain(adj, partition_, k, overlap));
-        factors_.push_back(std::make_unique<BlockFactor>());
-        factors_.back()->setMode(Eigen::CholmodSimplicialLLt);
-        factors_.back()->compute(Restrict(*Q_, b, domains_.back(), shift_));
-        CERTISLAM_CHECK(factors_.back()->info() == Eigen::Success);
+        domains.push_back(ExtendedDomain(adj, partition_, k, overlap));
+        factors.push_back(std::make_unique<BlockFactor>());
+        factors.back()->setMode(Eigen::CholmodSimplicialLLt);
+        factors.back()->compute(Restrict(*Q_, b, domains.back(), shift_));
+        if (factors.back()->info() != Eigen::Success) return false;
     }
+    domains_ = std::move(domains);
+    factors_ = std::move(factors);
     overlap_ = overlap;
+    return true;
+}
+
+int SchwarzPreconditioner::IterationCap(int cap) const {
+    return overlap_ < max_overlap_ ? std::min(cap, escalate_after_ + 1) : cap;
 }
 
 void SchwarzPreconditioner::ReportCgIterations(int iterations) {
     if (iterations > escalate_after_ && overlap_ < max_overlap_) Build(max_overlap_);
 }
 
-SchwarzPreconditioner::~SchwarzPreconditioner() = default;
-
 Eigen::MatrixXd SchwarzPreconditioner::Solve(const Eigen::MatrixXd& B) const {
+    CERTISLAM_CHECK(B.rows() == Q_->rows());
     const int b = d_ + 1;
     Eigen::MatrixXd Z = Eigen::MatrixXd::Zero(B.rows(), B.cols());
     for (size_t k = 0; k < domains_.size(); ++k) {

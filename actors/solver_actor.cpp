@@ -16,6 +16,10 @@ void SolverActorConfig::Validate() const {
     if (tick.count() <= 0 || heartbeat.count() <= 0 || bundle_period.count() <= 0) {
         throw std::invalid_argument("SolverActorConfig.tick/heartbeat/bundle_period: must be > 0");
     }
+    if (publish_period.count() < 0) {
+        throw std::invalid_argument("SolverActorConfig.publish_period = " +
+                                    std::to_string(publish_period.count()) + " ms: must be >= 0");
+    }
 }
 
 SolverActor::SolverActor(zmq::context_t& context, const TeamWiring& wiring,
@@ -161,6 +165,13 @@ void SolverActor::Changed() {
 }
 
 void SolverActor::Tick() {
+    // Public poses at most every publish_period: with a 2 ms tick every step's poses went out
+    // (at 3 robots the solvers' poses were half of the demo's bytes); the newest go out late.
+    if (publish_pending_ &&
+        std::chrono::steady_clock::now() - last_publish_ >= config_.publish_period) {
+        Publish();
+        UpdateSnapshot();
+    }
     if (!work_ || state_.NumPoses() == 0) return;
     double team_cost = 0.0;
     for (const auto& [robot, cost] : team_cost_) team_cost += robot == RobotId() ? 0.0 : cost;
@@ -171,16 +182,22 @@ void SolverActor::Tick() {
     local_ok_ = step.status == SolverStepResult::Status::kLocalOk;
     // Converged against the last poses heard: wait for news instead of spinning.
     work_ = !local_ok_ && step.status != SolverStepResult::Status::kStuck;
-    // A step that moved the block is published at once even when it ends below tolerance:
-    // otherwise the team's last refinements travel only with the heartbeat.
+    // A step that moved the block is published (within publish_period) even when it ends below
+    // tolerance: otherwise the team's last refinements travel only with the heartbeat.
     if (!local_ok_ || step.moved) bundle_dirty_ = true;
-    if (!local_ok_ || step.rebuilt || step.moved) Publish();
+    if (!local_ok_ || step.rebuilt || step.moved) publish_pending_ = true;
+    if (publish_pending_ &&
+        std::chrono::steady_clock::now() - last_publish_ >= config_.publish_period) {
+        Publish();
+    }
     const auto now = std::chrono::steady_clock::now();
     if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
     UpdateSnapshot();
 }
 
 void SolverActor::Publish() {
+    publish_pending_ = false;
+    last_publish_ = std::chrono::steady_clock::now();
     auto poses = ToProto(state_.PublicPoses(steps_));
     *poses.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     Send(*poses_out_, transport::Pack(poses), true);
@@ -250,7 +267,7 @@ void SolverActor::UpdateSnapshot() {
     s.num_poses = state_.NumPoses();
     s.final = keyframes_ended_;
     for (int r : Wiring().robots) s.final = s.final && loops_ended_.count(r) > 0;
-    s.local_ok = local_ok_;
+    s.local_ok = local_ok_ && !publish_pending_;  // converged and the neighbours told so
     s.grad_norm = grad_norm_;
     s.steps = steps_;
     s.rank = state_.Rank();

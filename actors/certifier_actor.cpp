@@ -41,6 +41,18 @@ void Mix(std::uint64_t* h, const void* data, std::size_t size) {
     for (std::size_t i = 0; i < size; ++i) *h = (*h ^ bytes[i]) * 1099511628211ull;
 }
 
+/// Mixes every edge's ends, measurement and weights (both digests hash the graph the same way).
+template <typename Edges>
+void MixEdges(std::uint64_t* h, const Edges& edges) {
+    for (const auto& e : edges) {
+        Mix(h, &e.a, sizeof(e.a));
+        Mix(h, &e.b, sizeof(e.b));
+        Mix(h, e.T_a_b.matrix().data(), sizeof(double) * 16);
+        Mix(h, &e.kappa, sizeof(e.kappa));
+        Mix(h, &e.tau, sizeof(e.tau));
+    }
+}
+
 }  // namespace
 
 std::uint64_t CertifierActor::Digest(const Bundle& b) {
@@ -52,13 +64,7 @@ std::uint64_t CertifierActor::Digest(const Bundle& b) {
     Mix(&h, dims, sizeof(dims));
     Mix(&h, b.block.blocks.data(),
         sizeof(double) * static_cast<std::size_t>(b.block.blocks.size()));
-    for (const auto& e : b.edges) {
-        Mix(&h, &e.a, sizeof(e.a));
-        Mix(&h, &e.b, sizeof(e.b));
-        Mix(&h, e.T_a_b.matrix().data(), sizeof(double) * 16);
-        Mix(&h, &e.kappa, sizeof(e.kappa));
-        Mix(&h, &e.tau, sizeof(e.tau));
-    }
+    MixEdges(&h, b.edges);
     return h;
 }
 
@@ -67,13 +73,7 @@ std::uint64_t CertifierActor::GraphDigest(const Bundle& b) {
     for (const auto& id : b.block.ids) Mix(&h, &id, sizeof(id));
     const Eigen::Index rank = b.block.blocks.rows();
     Mix(&h, &rank, sizeof(rank));
-    for (const auto& e : b.edges) {
-        Mix(&h, &e.a, sizeof(e.a));
-        Mix(&h, &e.b, sizeof(e.b));
-        Mix(&h, e.T_a_b.matrix().data(), sizeof(double) * 16);
-        Mix(&h, &e.kappa, sizeof(e.kappa));
-        Mix(&h, &e.tau, sizeof(e.tau));
-    }
+    MixEdges(&h, b.edges);
     return h;
 }
 

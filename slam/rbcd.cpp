@@ -13,6 +13,7 @@
 #include "slam/check.h"
 #include "slam/connection_laplacian.h"
 #include "slam/rbcd_block.h"
+#include "slam/sparse_product.h"
 #include "slam/stiefel.h"
 
 namespace certislam::slam {
@@ -57,12 +58,12 @@ void RbcdConfig::Validate() const {
 }
 
 double LiftedCost(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X) {
-    return (X * Q).cwiseProduct(X).sum();
+    return DenseTimesSparse(X, Q).cwiseProduct(X).sum();
 }
 
 Eigen::MatrixXd RiemannianGradient(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
                                    int d) {
-    const Eigen::MatrixXd egrad = 2.0 * (X * Q);
+    const Eigen::MatrixXd egrad = 2.0 * DenseTimesSparse(X, Q);
     return ProjectToTangent(X, egrad, d);
 }
 

@@ -12,6 +12,7 @@
 #include "slam/rbcd.h"
 #include "slam/rbcd_block.h"
 #include "slam/schwarz_preconditioner.h"
+#include "slam/sparse_product.h"
 #include "slam/stiefel.h"
 
 namespace certislam::slam {
@@ -98,7 +99,7 @@ struct Evaluation {
 
 Evaluation Evaluate(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X, int d) {
     Evaluation e;
-    const Eigen::MatrixXd XQ = X * Q;
+    const Eigen::MatrixXd XQ = DenseTimesSparse(X, Q);
     e.cost = XQ.cwiseProduct(X).sum();
     e.rgrad = ProjectToTangent(X, 2.0 * XQ, d);
     e.grad_norm = e.rgrad.norm();

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "slam/check.h"
+#include "slam/sparse_product.h"
 
 namespace certislam::slam {
 
@@ -49,7 +50,7 @@ void TranslationElimination::SolveInto(const Eigen::MatrixXd& B, Eigen::MatrixXd
 void TranslationElimination::OptimizeTranslations(Eigen::MatrixXd* X,
                                                   const Eigen::MatrixXd* G) const {
     CERTISLAM_CHECK(X->cols() == Q_RT_.rows());
-    Eigen::MatrixXd B = (*X) * Q_RT_;  // translation rows of Q_RT_ are zero: X_R Q_RT
+    Eigen::MatrixXd B = DenseTimesSparse(*X, Q_RT_);  // translation rows of Q_RT_ are zero: X_R Q_RT
     if (G != nullptr && G->size() > 0) {
         const int b = d_ + 1;
         for (int i = 0; i < k_; ++i) B.col(i) += G->col(b * i + d_);
@@ -59,7 +60,7 @@ void TranslationElimination::OptimizeTranslations(Eigen::MatrixXd* X,
 
 void TranslationElimination::Lift(Eigen::MatrixXd* V) const {
     CERTISLAM_CHECK(V->cols() == Q_RT_.rows());
-    SolveInto((*V) * Q_RT_, V);
+    SolveInto(DenseTimesSparse(*V, Q_RT_), V);
 }
 
 void TranslationElimination::ZeroTranslations(Eigen::MatrixXd* V) const {

@@ -50,7 +50,8 @@ void TranslationElimination::SolveInto(const Eigen::MatrixXd& B, Eigen::MatrixXd
 void TranslationElimination::OptimizeTranslations(Eigen::MatrixXd* X,
                                                   const Eigen::MatrixXd* G) const {
     CERTISLAM_CHECK(X->cols() == Q_RT_.rows());
-    Eigen::MatrixXd B = DenseTimesSparse(*X, Q_RT_);  // translation rows of Q_RT_ are zero: X_R Q_RT
+    Eigen::MatrixXd B =
+        DenseTimesSparse(*X, Q_RT_);  // translation rows of Q_RT_ are zero: X_R Q_RT
     if (G != nullptr && G->size() > 0) {
         const int b = d_ + 1;
         for (int i = 0; i < k_; ++i) B.col(i) += G->col(b * i + d_);

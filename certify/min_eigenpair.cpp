@@ -43,9 +43,16 @@ class InverseOperator {
 bool FindShift(const SparseMatrix& S, const MinEigenpairConfig& config, Cholesky* factor,
                MinEigenpairResult* result) {
     factor->cholmod().print = 0;  // a failed attempt is expected, not worth a warning
-    // LL^T only: CHOLMOD's automatic mode may pick a simplicial LDL^T, which "succeeds" on
-    // indefinite matrices and would make every shift look valid.
+    // LL^T only: Eigen's automatic mode keeps a simplicial LDL^T, which "succeeds" on indefinite
+    // matrices and would make every shift look valid. Simplicial or supernodal is CHOLMOD's own
+    // choice (supernodal when flops / nnz(L) >= Common.supernodal_switch, 40): Debian's ATLAS runs
+    // supernodal solves through its reference trsv, so on sparse factors the Lanczos solves are
+    // 2-3x faster simplicial (eigen-solve time, parking-garage: fl/lnz 37, 0.164 -> 0.081 s;
+    // kitti_00: 8, 0.228 -> 0.149 s), while dense ones (torus3D 258) stay supernodal.
     factor->setMode(Eigen::CholmodSupernodalLLt);
+    factor->cholmod().supernodal = CHOLMOD_AUTO;
+    factor->cholmod().final_asis = 0;
+    factor->cholmod().final_ll = 1;
     factor->analyzePattern(S);
     double magnitude = config.initial_shift;
     for (int k = 0; k < config.max_shift_attempts; ++k) {

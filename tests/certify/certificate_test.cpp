@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/SVD>
+#include <cmath>
 #include <random>
 
 #include "certify/min_eigenpair.h"
@@ -142,6 +143,30 @@ TEST(SmallestEigenpair, MatchesDenseSolverOnCertificateMatrices) {
         ASSERT_EQ(on_q.status, MinEigenpairResult::Status::kConverged);
         EXPECT_NEAR(on_q.lambda, DenseLambdaMin(Q), kDenseMatchTolerance * scale);
     }
+}
+
+// A very sparse factor (tridiagonal: flops / nnz(L) about 1) is simplicial in CHOLMOD's choice;
+// its shift search must still refuse indefinite shifts (an LDL^T would accept them and the
+// Lanczos run would then converge to the wrong end of the spectrum).
+TEST(SmallestEigenpair, FindsTheNegativeEndOfAKnownSpectrumWithASimplicialFactor) {
+    const int n = 500;
+    const double offset = 0.5;
+    std::vector<Eigen::Triplet<double>> triplets;
+    for (int i = 0; i < n; ++i) {
+        triplets.emplace_back(i, i, 2.0 - offset);
+        if (i + 1 < n) {
+            triplets.emplace_back(i, i + 1, -1.0);
+            triplets.emplace_back(i + 1, i, -1.0);
+        }
+    }
+    Eigen::SparseMatrix<double> S(n, n);
+    S.setFromTriplets(triplets.begin(), triplets.end());
+    const double expected = 2.0 - 2.0 * std::cos(M_PI / (n + 1)) - offset;  // closed form
+    const MinEigenpairResult pair = SmallestEigenpair(S);
+    ASSERT_EQ(pair.status, MinEigenpairResult::Status::kConverged);
+    const double scale = 4.0;  // ||S|| <= 4 (Gershgorin)
+    EXPECT_NEAR(pair.lambda, expected, kDenseMatchTolerance * scale);
+    EXPECT_LE(pair.residual, kDenseMatchTolerance * scale);
 }
 
 TEST(SmallestEigenpair, IsReproducibleWithFixedSeed) {

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace certislam::certify {
@@ -32,8 +33,9 @@ struct CertificateConfig {
     /// After a certified verdict the lower bound f* >= tr(Lambda) - eta d n is tightened down
     /// to eta * 10^-bound_refinements (the verdict's eta is meant to be safe, not tight; at a
     /// well-converged optimum S is PSD to rounding noise): first one factorization at
-    /// max(4 |lambda_min|, that floor), then, if it fails, eta / 10 steps while S + eta D still
-    /// factorizes. >= 0; 0: the bound stays at the verdict's eta.
+    /// max(4 |lambda_min|, that floor), then, if it fails, the smallest eta 10^-k above it at
+    /// which S + eta D still factorizes, found by bisection on k (about log2(bound_refinements)
+    /// factorizations). >= 0; 0: the bound stays at the verdict's eta.
     int bound_refinements = 6;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
@@ -80,6 +82,11 @@ Eigen::SparseMatrix<double> CertificateMatrix(const Eigen::SparseMatrix<double>&
 
 /// Upper bound of ||Q||_2: the largest absolute row sum (Gershgorin).
 double NormUpperBound(const Eigen::SparseMatrix<double>& Q);
+
+/// The largest k in [pass, fail) with ok(k), given ok(pass) and ok monotone (true up to some k,
+/// false after it), by bisection: ceil(log2(fail - pass)) calls of ok. The bound refinement's
+/// search of the smallest PSD eta on the ladder eta 10^-k.
+int LastPassing(int pass, int fail, const std::function<bool(int)>& ok);
 
 /// Certifies X (r x (d+1)n, blocks [Y_i p_i], Y_i on the Stiefel manifold) for f = tr(X Q X^T).
 CertificateResult Certify(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X, int d,

@@ -175,6 +175,25 @@ TEST(SmallestEigenpair, IsReproducibleWithFixedSeed) {
     EXPECT_EQ(SmallestEigenpair(S).lambda, SmallestEigenpair(S).lambda);
 }
 
+// The bound refinement's bisection: for every threshold of a monotone predicate it returns the
+// last passing index, as a linear scan would, in at most ceil(log2(fail - pass)) calls.
+TEST(LastPassing, FindsEveryThresholdInLogarithmicCalls) {
+    for (int fail = 1; fail <= 9; ++fail) {
+        const int max_calls = static_cast<int>(std::ceil(std::log2(fail)));
+        for (int threshold = 0; threshold < fail; ++threshold) {
+            int calls = 0;
+            const int found = LastPassing(0, fail, [&](int k) {
+                ++calls;
+                EXPECT_GT(k, 0) << "ok(pass) is given, not asked";
+                EXPECT_LT(k, fail) << "fail is excluded";
+                return k <= threshold;
+            });
+            EXPECT_EQ(found, threshold) << "fail " << fail;
+            EXPECT_LE(calls, max_calls) << "fail " << fail << " threshold " << threshold;
+        }
+    }
+}
+
 TEST(CertificateConfig, RejectsBadValuesNamingTheField) {
     CertificateConfig config;
     config.eta_relative = -1.0;

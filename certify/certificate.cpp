@@ -83,30 +83,34 @@ class PsdTest {
     Eigen::CholmodDecomposition<SparseMatrix, Eigen::Lower> factor_;
 };
 
-/// Tightens the verified eta (the lower bound f* >= tr(Lambda) - eta d n) after the eigen-
-/// solve: the smallest eta worth trying is a small multiple of |lambda_min| (S + eta D is not
-/// PSD below -lambda_min), so one factorization there usually settles it. If it fails (D shifts
-/// rotation entries only, so the eta needed can exceed 4 |lambda_min|), the smallest PSD eta among
-/// eta 10^-k, k = 1..bound_refinements, above that target is found by bisection on k: S + eta D
-/// is PSD for every eta above a PSD one (D >= 0), so this is the step-down ladder's answer in
-/// ceil(log2(bound_refinements + 1)) factorizations instead of up to bound_refinements (torus3D,
-/// --robots 1: 3 against 6, each 0.15 s). Only etas that factorized reach set_bound.
+/// The verdict (SE-Sync's fast verification: S + eta D PSD) and the tightened lower bound f* >=
+/// tr(Lambda) - eta d n, after the eigen-solve. The smallest eta worth trying is a small multiple
+/// of |lambda_min| (S + eta D is not PSD below -lambda_min), so one factorization there usually
+/// settles both: S + eta D is PSD for every eta above a PSD one (D >= 0), so PSD at that target
+/// below the verdict's eta is the verdict too, without factorizing at eta. If it fails (D shifts
+/// rotation entries only, so the eta needed can exceed 4 |lambda_min|), the verdict is tested at
+/// eta, then the smallest PSD eta among eta 10^-k, k = 1..bound_refinements, above the target is
+/// found by bisection on k: the step-down ladder's answer in ceil(log2(bound_refinements + 1))
+/// factorizations instead of up to bound_refinements. Returns the verdict; only etas that
+/// factorized reach set_bound.
 template <typename SetBound>
-void RefineBound(const CertificateConfig& config, double eta, double lambda_min, PsdTest* psd,
-                 const SetBound& set_bound) {
-    if (config.bound_refinements == 0) return;
+bool VerdictAndBound(const CertificateConfig& config, double eta, double lambda_min, PsdTest* psd,
+                     const SetBound& set_bound) {
+    if (config.bound_refinements == 0) return psd->PsdAt(eta);
     std::vector<double> ladder{eta};  // ladder[k] = eta 10^-k
     for (int k = 0; k < config.bound_refinements; ++k)
         ladder.push_back(ladder.back() * kBoundRefinementFactor);
     const double target = std::max(kLambdaMargin * std::max(-lambda_min, 0.0), ladder.back());
     if (target < eta && psd->PsdAt(target)) {
         set_bound(target);
-        return;
+        return true;
     }
+    if (!psd->PsdAt(eta)) return false;
     int fail = static_cast<int>(ladder.size());  // candidates above a failed target only
     while (fail > 1 && ladder[fail - 1] <= target) --fail;
     const int pass = LastPassing(0, fail, [&](int k) { return psd->PsdAt(ladder[k]); });
     if (pass > 0) set_bound(ladder[pass]);
+    return true;
 }
 
 }  // namespace
@@ -210,7 +214,6 @@ CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d
         return finish(CertificateResult::Status::kNotCritical);
     }
     PsdTest psd(S, d);
-    result.psd_at_eta = psd.PsdAt(result.eta);  // the verdict (SE-Sync fast verification)
     MinEigenpairConfig eig;
     eig.initial_shift = result.eta;
     eig.tolerance = config.eigen_tolerance;
@@ -221,9 +224,10 @@ CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d
     result.eigen_iterations = pair.iterations;
     result.shift_attempts = pair.shift_attempts;
     if (pair.status != MinEigenpairResult::Status::kConverged) {
+        result.psd_at_eta = psd.PsdAt(result.eta);  // the verdict stands without an eigenpair
         return finish(CertificateResult::Status::kEigensolverFailed);
     }
-    if (result.psd_at_eta) RefineBound(config, result.eta, pair.lambda, &psd, set_bound);
+    result.psd_at_eta = VerdictAndBound(config, result.eta, pair.lambda, &psd, set_bound);
     result.lambda_min = pair.lambda;
     result.lambda_min_relative = result.q_norm > 0.0 ? pair.lambda / result.q_norm : 0.0;
     result.eigen_residual = pair.residual;

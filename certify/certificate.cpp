@@ -84,14 +84,15 @@ class PsdTest {
 };
 
 /// The verdict (SE-Sync's fast verification: S + eta D PSD) and the tightened lower bound f* >=
-/// tr(Lambda) - eta d n, after the eigen-solve. The smallest eta worth trying is a small multiple
-/// of |lambda_min| (S + eta D is not PSD below -lambda_min), so one factorization there usually
-/// settles both: S + eta D is PSD for every eta above a PSD one (D >= 0), so PSD at that target
-/// below the verdict's eta is the verdict too, without factorizing at eta. If it fails (D shifts
-/// rotation entries only, so the eta needed can exceed 4 |lambda_min|), the verdict is tested at
-/// eta, then the smallest PSD eta among eta 10^-k, k = 1..bound_refinements, above the target is
-/// found by bisection on k: the step-down ladder's answer in ceil(log2(bound_refinements + 1))
-/// factorizations instead of up to bound_refinements. Returns the verdict; only etas that
+/// tr(Lambda) - eta d n, after the eigen-solve. S + eta D is PSD for every eta above a PSD one
+/// (D >= 0), so a PSD factorization below the verdict's eta is the verdict too. The smallest eta
+/// worth trying is a small multiple of |lambda_min| (S + eta D is not PSD below -lambda_min):
+/// one factorization there usually settles both. If it fails (D shifts rotation entries only, so
+/// the eta needed can exceed 4 |lambda_min|), the candidates are eta 10^-k, k = 1..
+/// bound_refinements, above that target: the nearest one first (the eta needed is usually just
+/// above the target: torus3D --robots 1), then the verdict at eta, then bisection on k for the
+/// smallest PSD one, in ceil(log2(bound_refinements)) more factorizations at most (the old
+/// step-down ladder needed up to bound_refinements). Returns the verdict; only etas that
 /// factorized reach set_bound.
 template <typename SetBound>
 bool VerdictAndBound(const CertificateConfig& config, double eta, double lambda_min, PsdTest* psd,
@@ -105,9 +106,14 @@ bool VerdictAndBound(const CertificateConfig& config, double eta, double lambda_
         set_bound(target);
         return true;
     }
-    if (!psd->PsdAt(eta)) return false;
     int fail = static_cast<int>(ladder.size());  // candidates above a failed target only
     while (fail > 1 && ladder[fail - 1] <= target) --fail;
+    if (fail > 1 && psd->PsdAt(ladder[fail - 1])) {  // usually just above the target
+        set_bound(ladder[fail - 1]);
+        return true;
+    }
+    if (!psd->PsdAt(eta)) return false;
+    if (fail > 1) --fail;  // that rung failed
     const int pass = LastPassing(0, fail, [&](int k) { return psd->PsdAt(ladder[k]); });
     if (pass > 0) set_bound(ladder[pass]);
     return true;

@@ -59,8 +59,9 @@ struct RbcdConfig {
     /// graphs with strong inter-robot coupling (parking-garage). With eliminate_translations
     /// the finish eliminates the translations of the whole graph: each Hessian-vector product
     /// then also needs Q_TT^{-1} (the scalar translation Laplacian) applied to r vectors, done
-    /// here by one global sparse Cholesky; on a network that is an inner distributed CG, which
-    /// is not implemented (this in-process finish is not yet a purely distributed algorithm).
+    /// here by one global sparse Cholesky. On a network that would be an all-gather or an
+    /// inner distributed CG (29-36 Schwarz-preconditioned iterations per solve on parking-garage,
+    /// BENCHMARKS.md), so this in-process finish is distributed except for that solve.
     /// 5 measured fastest of {5, 10, 30} on sphere2500, torus3D, cubicle, city10000 and
     /// parking-garage with 5 robots (BENCHMARKS.md). 0 disables; >= 0.
     int polish_after_iterations = 5;

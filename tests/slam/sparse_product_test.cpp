@@ -10,6 +10,7 @@
 
 #include "slam/connection_laplacian.h"
 #include "slam/g2o_io.h"
+#include "tests/slam/random_dense.h"
 
 namespace certislam::slam {
 namespace {
@@ -31,13 +32,7 @@ Eigen::SparseMatrix<double> RandomSparse(int rows, int cols, double density, uns
     return A;
 }
 
-Eigen::MatrixXd RandomDense(int rows, int cols, unsigned seed) {
-    std::mt19937 rng(seed);
-    std::normal_distribution<double> normal(0.0, 1.0);
-    Eigen::MatrixXd V(rows, cols);
-    for (Eigen::Index i = 0; i < V.size(); ++i) V.data()[i] = normal(rng);
-    return V;
-}
+using testing::RandomDense;
 
 double RelativeError(const Eigen::MatrixXd& V, const Eigen::SparseMatrix<double>& A) {
     const Eigen::MatrixXd reference = V * A;

@@ -6,21 +6,16 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/QR>
-#include <random>
 #include <string>
+
+#include "tests/slam/random_dense.h"
 
 namespace certislam::slam {
 namespace {
 
 constexpr double kRounding = 1e-12;  ///< absolute, on entries of order 1
 
-Eigen::MatrixXd RandomDense(int rows, int cols, unsigned seed) {
-    std::mt19937 rng(seed);
-    std::normal_distribution<double> normal(0.0, 1.0);
-    Eigen::MatrixXd V(rows, cols);
-    for (Eigen::Index i = 0; i < V.size(); ++i) V.data()[i] = normal(rng);
-    return V;
-}
+using testing::RandomDense;
 
 // A point of (St(d, r) x R^r)^k with exactly orthonormal rotation blocks (thin QR factors).
 Eigen::MatrixXd RandomPoint(int d, int r, int k, unsigned seed) {

@@ -83,42 +83,6 @@ class PsdTest {
     Eigen::CholmodDecomposition<SparseMatrix, Eigen::Lower> factor_;
 };
 
-/// The verdict (SE-Sync's fast verification: S + eta D PSD) and the tightened lower bound f* >=
-/// tr(Lambda) - eta d n, after the eigen-solve. S + eta D is PSD for every eta above a PSD one
-/// (D >= 0), so a PSD factorization below the verdict's eta is the verdict too. The smallest eta
-/// worth trying is a small multiple of |lambda_min| (S + eta D is not PSD below -lambda_min):
-/// one factorization there usually settles both. If it fails (D shifts rotation entries only, so
-/// the eta needed can exceed 4 |lambda_min|), the candidates are eta 10^-k, k = 1..
-/// bound_refinements, above that target: the nearest one first (the eta needed is usually just
-/// above the target: torus3D --robots 1), then the verdict at eta, then bisection on k for the
-/// smallest PSD one, in ceil(log2(bound_refinements)) more factorizations at most (the old
-/// step-down ladder needed up to bound_refinements). Returns the verdict; only etas that
-/// factorized reach set_bound.
-template <typename SetBound>
-bool VerdictAndBound(const CertificateConfig& config, double eta, double lambda_min, PsdTest* psd,
-                     const SetBound& set_bound) {
-    if (config.bound_refinements == 0) return psd->PsdAt(eta);
-    std::vector<double> ladder{eta};  // ladder[k] = eta 10^-k
-    for (int k = 0; k < config.bound_refinements; ++k)
-        ladder.push_back(ladder.back() * kBoundRefinementFactor);
-    const double target = std::max(kLambdaMargin * std::max(-lambda_min, 0.0), ladder.back());
-    if (target < eta && psd->PsdAt(target)) {
-        set_bound(target);
-        return true;
-    }
-    int fail = static_cast<int>(ladder.size());  // candidates above a failed target only
-    while (fail > 1 && ladder[fail - 1] <= target) --fail;
-    if (fail > 1 && psd->PsdAt(ladder[fail - 1])) {  // usually just above the target
-        set_bound(ladder[fail - 1]);
-        return true;
-    }
-    if (!psd->PsdAt(eta)) return false;
-    if (fail > 1) --fail;  // that rung failed
-    const int pass = LastPassing(0, fail, [&](int k) { return psd->PsdAt(ladder[k]); });
-    if (pass > 0) set_bound(ladder[pass]);
-    return true;
-}
-
 }  // namespace
 
 void CertificateConfig::Validate() const {
@@ -159,6 +123,42 @@ SparseMatrix CertificateMatrix(const SparseMatrix& Q, const std::vector<Eigen::M
     SparseMatrix S = Q + L;
     S.makeCompressed();
     return S;
+}
+
+BoundSearch VerdictAndBound(double eta, double lambda_min, int bound_refinements,
+                            const std::function<bool(double)>& psd_at) {
+    CERTISLAM_CHECK(eta > 0.0 && bound_refinements >= 0);
+    BoundSearch out;
+    out.bound_eta = eta;
+    auto psd = [&](double e) {
+        ++out.factorizations;
+        return psd_at(e);
+    };
+    if (bound_refinements == 0) {
+        out.psd_at_eta = psd(eta);
+        return out;
+    }
+    std::vector<double> ladder{eta};  // ladder[k] = eta 10^-k
+    for (int k = 0; k < bound_refinements; ++k)
+        ladder.push_back(ladder.back() * kBoundRefinementFactor);
+    const double target = std::max(kLambdaMargin * std::max(-lambda_min, 0.0), ladder.back());
+    if (target < eta && psd(target)) {
+        out.psd_at_eta = true;
+        out.bound_eta = target;
+        return out;
+    }
+    int fail = static_cast<int>(ladder.size());  // candidates above a failed target only
+    while (fail > 1 && ladder[fail - 1] <= target) --fail;
+    if (fail > 1 && psd(ladder[fail - 1])) {  // usually just above the target
+        out.psd_at_eta = true;
+        out.bound_eta = ladder[fail - 1];
+        return out;
+    }
+    out.psd_at_eta = psd(eta);
+    if (!out.psd_at_eta) return out;
+    if (fail > 1) --fail;  // that rung failed
+    out.bound_eta = ladder[LastPassing(0, fail, [&](int k) { return psd(ladder[k]); })];
+    return out;
 }
 
 int LastPassing(int pass, int fail, const std::function<bool(int)>& ok) {
@@ -233,7 +233,10 @@ CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d
         result.psd_at_eta = psd.PsdAt(result.eta);  // the verdict stands without an eigenpair
         return finish(CertificateResult::Status::kEigensolverFailed);
     }
-    result.psd_at_eta = VerdictAndBound(config, result.eta, pair.lambda, &psd, set_bound);
+    const BoundSearch search = VerdictAndBound(result.eta, pair.lambda, config.bound_refinements,
+                                               [&](double eta) { return psd.PsdAt(eta); });
+    result.psd_at_eta = search.psd_at_eta;
+    if (search.psd_at_eta) set_bound(search.bound_eta);
     result.lambda_min = pair.lambda;
     result.lambda_min_relative = result.q_norm > 0.0 ? pair.lambda / result.q_norm : 0.0;
     result.eigen_residual = pair.residual;

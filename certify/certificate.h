@@ -34,8 +34,8 @@ struct CertificateConfig {
     /// to eta * 10^-bound_refinements (the verdict's eta is meant to be safe, not tight; at a
     /// well-converged optimum S is PSD to rounding noise): first one factorization at
     /// max(4 |lambda_min|, that floor), then, if it fails, the smallest eta 10^-k above it at
-    /// which S + eta D still factorizes, found by bisection on k (about log2(bound_refinements)
-    /// factorizations). >= 0; 0: the bound stays at the verdict's eta.
+    /// which S + eta D still factorizes (VerdictAndBound below: the nearest rung first, then
+    /// bisection on k). >= 0; 0: the bound stays at the verdict's eta.
     int bound_refinements = 6;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
@@ -51,7 +51,8 @@ struct CertificateResult {
         kEigensolverFailed,  ///< critical, verdict made, but the eigenpair did not converge
     };
     Status status = Status::kEigensolverFailed;
-    bool psd_at_eta = false;           ///< the sparse Cholesky of S + eta D succeeded
+    /// S + eta D is PSD: a sparse Cholesky of S + e D succeeded for some e <= eta
+    bool psd_at_eta = false;
     double cost = 0.0;                 ///< f(X) = tr(X Q X^T), SE-Sync objective (no 1/2)
     double dual_value = 0.0;           ///< tr(Lambda)
     double duality_gap = 0.0;          ///< f(X) - tr(Lambda) (= <grad, X>/2)
@@ -84,9 +85,28 @@ Eigen::SparseMatrix<double> CertificateMatrix(const Eigen::SparseMatrix<double>&
 double NormUpperBound(const Eigen::SparseMatrix<double>& Q);
 
 /// The largest k in [pass, fail) with ok(k), given ok(pass) and ok monotone (true up to some k,
-/// false after it), by bisection: ceil(log2(fail - pass)) calls of ok. The bound refinement's
-/// search of the smallest PSD eta on the ladder eta 10^-k.
+/// false after it), by bisection: ceil(log2(fail - pass)) calls of ok.
 int LastPassing(int pass, int fail, const std::function<bool(int)>& ok);
+
+/// What VerdictAndBound found.
+struct BoundSearch {
+    bool psd_at_eta = false;  ///< the verdict: S + eta D is PSD (shown at eta or below it)
+    double bound_eta = 0.0;   ///< smallest eta shown PSD (eta itself if none smaller); if verdict
+    int factorizations = 0;   ///< calls of psd_at
+};
+
+/// The verdict (SE-Sync's fast verification: S + eta D PSD) and the eta of the tightened lower
+/// bound f* >= tr(Lambda) - eta d n, from psd_at(e) (a Cholesky test of S + e D, monotone in e:
+/// D >= 0, so PSD at e means PSD above it; a PSD test below eta is the verdict too). First e =
+/// max(4 |lambda_min|, eta 10^-bound_refinements) (S + e D is not PSD below -lambda_min, and at
+/// a well-converged optimum one test there settles both); if it fails, the rung eta 10^-k just
+/// above it (the eta needed is usually there: torus3D --robots 1), then the verdict at eta,
+/// then bisection on k for the smallest PSD rung. Certified: 1-2 tests usually, at most
+/// 3 + ceil(log2(bound_refinements)); not certified: 1 test when 4 |lambda_min| >= eta, else 3.
+/// Same verdict and bound as stepping down the ladder from eta while it stays PSD (the old
+/// rule, up to 1 + bound_refinements tests). bound_refinements 0: one test at eta.
+BoundSearch VerdictAndBound(double eta, double lambda_min, int bound_refinements,
+                            const std::function<bool(double)>& psd_at);
 
 /// Certifies X (r x (d+1)n, blocks [Y_i p_i], Y_i on the Stiefel manifold) for f = tr(X Q X^T).
 CertificateResult Certify(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X, int d,

@@ -49,10 +49,11 @@ bool FindShift(const SparseMatrix& S, const MinEigenpairConfig& config, Cholesky
     // supernodal solves through its reference trsv, so on sparse factors the Lanczos solves are
     // 2-3x faster simplicial (eigen-solve time, parking-garage: fl/lnz 37, 0.164 -> 0.081 s;
     // kitti_00: 8, 0.228 -> 0.149 s), while dense ones (torus3D 258) stay supernodal.
-    factor->setMode(Eigen::CholmodSupernodalLLt);
+    // Simplicial LL^T reports a pivot <= 0 as not positive definite only with dbound = 0 (the
+    // default; a positive dbound would clamp it and accept indefinite matrices).
+    factor->setMode(Eigen::CholmodSimplicialLLt);  // final_ll: LL^T in both forms
     factor->cholmod().supernodal = CHOLMOD_AUTO;
-    factor->cholmod().final_asis = 0;
-    factor->cholmod().final_ll = 1;
+    factor->cholmod().dbound = 0.0;
     factor->analyzePattern(S);
     double magnitude = config.initial_shift;
     for (int k = 0; k < config.max_shift_attempts; ++k) {

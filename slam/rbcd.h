@@ -61,8 +61,8 @@ struct RbcdConfig {
     /// then also needs Q_TT^{-1} (the scalar translation Laplacian) applied to r vectors, done
     /// here by one global sparse Cholesky. On a network that would be an all-gather or an
     /// inner distributed CG (29-36 Schwarz-preconditioned iterations per solve on parking-garage,
-    /// BENCHMARKS.md), so this in-process finish is distributed except for that solve.
-    /// 5 measured fastest of {5, 10, 30} on sphere2500, torus3D, cubicle, city10000 and
+    /// a scratch measurement in BENCHMARKS.md), so this in-process finish is distributed except for
+    /// that solve. 5 measured fastest of {5, 10, 30} on sphere2500, torus3D, cubicle, city10000 and
     /// parking-garage with 5 robots (BENCHMARKS.md). 0 disables; >= 0.
     int polish_after_iterations = 5;
     /// The finish's preconditioner (slam/schwarz_preconditioner.h): block Jacobi (each robot's

@@ -6,8 +6,11 @@
 
 #include <Eigen/Dense>
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <random>
+#include <string>
 
 #include "certify/min_eigenpair.h"
 #include "slam/connection_laplacian.h"
@@ -192,6 +195,75 @@ TEST(LastPassing, FindsEveryThresholdInLogarithmicCalls) {
             EXPECT_LE(calls, max_calls) << "fail " << fail << " threshold " << threshold;
         }
     }
+}
+
+// The refinement rule before VerdictAndBound: the verdict at eta, then one test at the target,
+// then eta / 10 steps while PSD (kept here as the reference the search must agree with).
+BoundSearch SteppedLadder(double eta, double lambda_min, int refinements,
+                          const std::function<bool(double)>& psd_at) {
+    BoundSearch out;
+    out.bound_eta = eta;
+    out.psd_at_eta = psd_at(eta);
+    if (!out.psd_at_eta || refinements == 0) return out;
+    double floor = eta;
+    for (int k = 0; k < refinements; ++k) floor *= 0.1;
+    const double target = std::max(4.0 * std::max(-lambda_min, 0.0), floor);
+    if (target < eta && psd_at(target)) {
+        out.bound_eta = target;
+        return out;
+    }
+    double e = eta;
+    for (int k = 0; k < refinements; ++k) {
+        e *= 0.1;
+        if (e <= target || !psd_at(e)) break;
+        out.bound_eta = e;
+    }
+    return out;
+}
+
+// Every monotone PSD threshold (between, on and off the ladder's rungs, above eta, at 0) and
+// lambda_min from clearly positive to clearly negative: same verdict and bound as the stepped
+// ladder, every reported eta tested PSD, and at most 3 + ceil(log2(refinements)) tests.
+TEST(VerdictAndBound, AgreesWithTheSteppedLadderForEveryThreshold) {
+    const double eta = 2.5e-4;
+    for (int refinements : {0, 1, 2, 6}) {
+        for (double exponent = -1.0; exponent <= 9.0; exponent += 0.25) {
+            const double threshold = eta * std::pow(10.0, -exponent);
+            const auto psd_at = [&](double e) { return e >= threshold; };
+            for (double lambda_min : {1e-3 * eta, 0.0, -1e-12 * eta, -1e-6 * eta, -1e-3 * eta,
+                                      -0.1 * eta, -eta, -3.0 * eta}) {
+                const BoundSearch got = VerdictAndBound(eta, lambda_min, refinements, psd_at);
+                const BoundSearch want = SteppedLadder(eta, lambda_min, refinements, psd_at);
+                const std::string where = "refinements " + std::to_string(refinements) +
+                                          " threshold " + std::to_string(threshold) +
+                                          " lambda_min " + std::to_string(lambda_min);
+                EXPECT_EQ(got.psd_at_eta, want.psd_at_eta) << where;
+                if (!want.psd_at_eta) continue;
+                EXPECT_EQ(got.bound_eta, want.bound_eta) << where;
+                EXPECT_TRUE(psd_at(got.bound_eta)) << where;
+                const int max_tests =
+                    3 + static_cast<int>(std::ceil(std::log2(std::max(refinements, 1))));
+                EXPECT_LE(got.factorizations, max_tests) << where;
+            }
+        }
+    }
+}
+
+// On a certified optimum the refined eta really makes S + eta D PSD (dense check, D = identity
+// on rotation entries) and is no larger than the verdict's eta.
+TEST_P(TwoPoseByDimension, RefinedBoundEtaKeepsTheShiftedMatrixPsd) {
+    const int d = GetParam();
+    const TwoPoseProblem p = MakeTwoPose(d);
+    const auto Q = slam::ConnectionLaplacian(p.graph);
+    const CertificateResult result = Certify(Q, p.X, d);
+    ASSERT_EQ(result.status, CertificateResult::Status::kCertified);
+    EXPECT_LE(result.bound_eta, result.eta);
+    Eigen::MatrixXd shifted = CertificateMatrix(Q, LambdaBlocks(Q, p.X, d), d);
+    for (int i = 0; i < shifted.rows(); ++i) {
+        if (i % (d + 1) != d) shifted(i, i) += result.bound_eta;
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> dense(shifted);
+    EXPECT_GE(dense.eigenvalues()(0), -kDenseMatchTolerance * result.q_norm);
 }
 
 TEST(CertificateConfig, RejectsBadValuesNamingTheField) {

@@ -19,6 +19,8 @@ void DescriptorActor::OnStart() {
     On(v1::Keyframe::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto keyframe = DecodeKeyframe(m);
         if (!keyframe || keyframe->robot != RobotId()) return false;
+        // A keyframe sent again is described once: the end marker counts distinct descriptors.
+        if (!described_.insert(keyframe->index).second) return true;
         const auto sc = slam::MakeScanContext(*keyframe->cloud, config_);
         auto proto = ToProto(sc, {keyframe->robot, keyframe->index});
         *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), keyframe->stamp_ns);
@@ -56,6 +58,7 @@ void DescriptorActor::SendEnd() {
     v1::Shutdown end;
     *end.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     end.set_reason(kEndOfDescriptors);
+    end.set_count(sent_.size());  // a matcher holding fewer waits for the re-sent ones
     Send(*out_, transport::Pack(end), true);
 }
 

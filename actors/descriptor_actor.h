@@ -2,6 +2,7 @@
 // its peers' (about 5 KB each instead of the cloud); forwards the end-of-stream marker.
 #pragma once
 
+#include <set>
 #include <vector>
 
 #include "actors/node_actor.h"
@@ -30,6 +31,7 @@ class DescriptorActor final : public NodeActor {
     transport::Endpoint* out_ = nullptr;
     bool ended_ = false;
     std::vector<transport::Message> sent_;  ///< every descriptor published, for rejoining peers
+    std::set<int> described_;               ///< keyframe indices in sent_ (each described once)
     std::size_t seen_subscribers_ = 0;
 };
 

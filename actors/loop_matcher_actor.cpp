@@ -95,7 +95,9 @@ void LoopMatcherActor::OnStart() {
     On(v1::Shutdown::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto end = transport::Unpack<v1::Shutdown>(m);
         if (!end) return false;
-        if (end->reason() == kEndOfDescriptors) ended_streams_.insert(end->header().robot_id());
+        if (end->reason() == kEndOfDescriptors) {
+            end_counts_[int(end->header().robot_id())] = end->count();
+        }
         return true;
     });
     Every(std::chrono::milliseconds(100), [this] { Tick(); });
@@ -122,6 +124,7 @@ bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
     if (!id || !sc || id->robot > RobotId() || id->robot != int(proto->header().robot_id())) {
         return false;
     }
+    received_[id->robot].insert(id->index);
     if (id->index % config_.query_stride != 0 || descriptors_.count(*id)) return true;
     for (const auto& [other, other_sc] : descriptors_) {
         // Own keyframe vs anything stored; a lower robot's keyframe vs own ones only.
@@ -294,6 +297,13 @@ void LoopMatcherActor::Reconcile() {
     }
 }
 
+bool LoopMatcherActor::StreamEnded(int r) const {
+    const auto end = end_counts_.find(r);
+    if (end == end_counts_.end()) return false;
+    const auto got = received_.find(r);
+    return (got == received_.end() ? 0 : got->second.size()) >= end->second;
+}
+
 void LoopMatcherActor::Tick() {
     auto deferred = std::move(deferred_);
     deferred_.clear();
@@ -306,7 +316,7 @@ void LoopMatcherActor::Tick() {
     }
     if (pcm_dirty_) Reconcile();  // once per tick: a burst of verified loops, one clique search
     bool done = pending_.empty() && deferred_.empty();
-    for (int r : Wiring().robots) done = done && (r > RobotId() || ended_streams_.count(r));
+    for (int r : Wiring().robots) done = done && (r > RobotId() || StreamEnded(r));
     if (!done) return;
     ended_ = true;
     v1::Shutdown end;

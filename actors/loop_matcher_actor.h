@@ -101,6 +101,9 @@ class LoopMatcherActor final : public NodeActor {
     void SendLoop(v1::LoopClosure proto, bool inter_robot);
     void Reconcile();
     void Tick();
+    /// True once robot r's end-of-descriptors marker came and every descriptor it counted is in
+    /// (a marker can overtake descriptors re-sent to a late subscriber).
+    bool StreamEnded(int r) const;
 
     LoopMatcherConfig config_;
     transport::Endpoint* loops_out_ = nullptr;
@@ -113,8 +116,9 @@ class LoopMatcherActor final : public NodeActor {
     slam::CloudRequestGate gate_;
     std::map<slam::PoseId, slam::ScanContext> descriptors_;  ///< own and lower robots'
     std::map<std::uint64_t, Pending> pending_;  ///< request id -> candidate that fetched
-    std::vector<Pending> deferred_;  ///< own clouds not yet arrived (descriptor came first)
-    std::set<int> ended_streams_;    ///< robots whose stream ended
+    std::vector<Pending> deferred_;          ///< own clouds not yet arrived (descriptor came first)
+    std::map<int, std::set<int>> received_;  ///< robot -> keyframe indices described to us
+    std::map<int, std::uint64_t> end_counts_;  ///< robot -> descriptors its end marker counted
     std::uint64_t next_request_ = 0;
     std::map<int, KeyframeOdometry> own_odometry_;  ///< own keyframe -> odometry
     IncrementalPcm pcm_;

@@ -1,7 +1,8 @@
 // Ingest, descriptor and loop matcher actors of two robots over real inproc sockets on a
 // simulated mission: the loops they publish agree with ground truth, each robot's matcher says
 // end of loops, clouds cross robots only for candidates (through the cloud-request gate, each
-// downsampled at the registration voxel), malformed keyframes are counted.
+// downsampled at the registration voxel), malformed keyframes are counted, and an end-of-
+// descriptors marker that overtakes the descriptors (a late subscriber) does not end the matcher.
 #include <gtest/gtest.h>
 
 #include <thread>
@@ -172,6 +173,87 @@ TEST(FrontEndActors, CloudReplyIsDownsampledAtTheRegistrationVoxel) {
             EXPECT_LT(2 * expected, keyframe.cloud->size());
         }
         matcher.Stop();
+    }
+}
+
+// A peer that subscribed late gets the lower robot's end-of-descriptors marker before the
+// descriptors re-sent to it (the publisher's periodic end can overtake its re-send). The marker
+// counts the stream, so robot 1's matcher waits for the descriptors and checks them before it
+// says end of loops. Robot 0's descriptor publisher is the test's, to force that order.
+TEST(FrontEndActors, EndMarkerOvertakingTheDescriptorsDoesNotEndTheMatcher) {
+    slam::SimulatorConfig sim;
+    sim.seed = 1;
+    const slam::MissionGenerator generator(sim);
+    zmq::context_t context;
+    const std::vector<int> robots{0, 1};
+    const TeamWiring w0 = InprocWiring(0, robots), w1 = InprocWiring(1, robots);
+    auto source = [&generator](int r) {
+        return [&generator, r, next = 0]() mutable -> std::optional<slam::Keyframe> {
+            if (next >= kKeyframes) return std::nullopt;
+            return generator.Generate(r, next++).keyframe;
+        };
+    };
+    IngestConfig ingest0, ingest1;
+    ingest0.local_subscribers = 1;  // robot 0's matcher (it serves the clouds)
+    ingest1.local_subscribers = 2;
+    LoopMatcherActor matcher0(context, w0, LoopMatcherConfig{});
+    IngestActor source0(context, w0, source(0), ingest0);
+    transport::Endpoint descriptors0(context, ServerConfig(w0, Edge::kDescriptors));
+    LoopMatcherActor matcher1(context, w1, LoopMatcherConfig{});
+    DescriptorActor descriptor1(context, w1, slam::ScanContextConfig{});
+    IngestActor source1(context, w1, source(1), ingest1);
+    transport::Endpoint loops1(context, ClientConfig(w0, Edge::kLoops, 1));
+    const std::vector<NodeActor*> started{&matcher0, &matcher1, &descriptor1, &source0, &source1};
+    for (NodeActor* a : started) a->Start();
+    ASSERT_TRUE(descriptors0.WaitForSubscribers(2, std::chrono::seconds(10)));
+    std::uint64_t sequence = 0;
+    v1::Shutdown end;
+    *end.mutable_header() = MakeHeader(0, ++sequence, 0);
+    end.set_reason(kEndOfDescriptors);
+    end.set_count(kKeyframes);
+    ASSERT_EQ(descriptors0.Send(transport::Pack(end)), transport::SendStatus::kSent);
+
+    // Robot 1's own stream ends; robot 0's is announced ended but nothing of it came: no end.
+    int loops = 0;
+    bool ended = false;
+    auto drain = [&](std::chrono::milliseconds wait) {
+        const auto until = std::chrono::steady_clock::now() + wait;
+        while (!ended && std::chrono::steady_clock::now() < until) {
+            while (auto m = loops1.Receive(std::chrono::milliseconds(10))) {
+                if (auto loop = transport::Unpack<v1::LoopClosure>(*m)) {
+                    loops += FromProto(*loop).has_value() ? 1 : 0;
+                } else if (auto e = transport::Unpack<v1::Shutdown>(*m)) {
+                    ended = ended || e->reason() == kEndOfLoops;
+                }
+            }
+        }
+    };
+    const auto deadline = std::chrono::steady_clock::now() + kTimeout;
+    while (!source1.Finished() && std::chrono::steady_clock::now() < deadline) {
+        drain(std::chrono::milliseconds(50));
+    }
+    ASSERT_TRUE(source1.Finished());
+    drain(std::chrono::milliseconds(1500));  // 15 matcher ticks
+    EXPECT_FALSE(ended) << "the matcher ended without robot 0's descriptors";
+    EXPECT_EQ(matcher1.CloudsRequested(), 0);
+
+    // The descriptors arrive after their end marker (then the marker again, as the actor does).
+    for (int i = 0; i < kKeyframes; ++i) {
+        const slam::Keyframe keyframe = generator.Generate(0, i).keyframe;
+        auto proto =
+            ToProto(slam::MakeScanContext(*keyframe.cloud, slam::ScanContextConfig{}), {0, i});
+        *proto.mutable_header() = MakeHeader(0, ++sequence, keyframe.stamp_ns);
+        ASSERT_EQ(descriptors0.Send(transport::Pack(proto)), transport::SendStatus::kSent);
+    }
+    *end.mutable_header() = MakeHeader(0, ++sequence, 0);
+    descriptors0.Send(transport::Pack(end));
+    drain(kTimeout);
+    EXPECT_TRUE(ended) << "robot 1's matcher never said end of loops";
+    EXPECT_GE(loops, 1) << "robot 1 checked none of robot 0's descriptors before its end";
+    EXPECT_GE(matcher1.CloudsRequested(), 1);
+    for (auto a = started.rbegin(); a != started.rend(); ++a) {
+        (*a)->Stop();  // joins: the counters are final
+        EXPECT_EQ((*a)->Counters().dropped_malformed, 0u) << (*a)->Name();
     }
 }
 

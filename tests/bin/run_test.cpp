@@ -48,7 +48,7 @@ class Run : public ::testing::Test {
         return (dir_ / name).string();
     }
     testing::ShellResult RunConfig(const std::string& config, const std::string& extra = "") {
-        return testing::Shell(Binary() + " run " + config + " --json --timeout 100 --out " +
+        return testing::Shell(Binary() + " run " + config + " --json --timeout 300 --out " +
                               (dir_ / "out").string() + extra + " 2>&1");
     }
 

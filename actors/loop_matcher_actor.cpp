@@ -120,11 +120,11 @@ bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
     const auto proto = transport::Unpack<v1::ScanContextDescriptor>(m);
     if (!proto) return false;
     const auto id = FromProto(proto->pose_id());
-    auto sc = FromProto(*proto);
-    if (!id || !sc || id->robot > RobotId() || id->robot != int(proto->header().robot_id())) {
-        return false;
-    }
+    if (!id || id->robot > RobotId() || id->robot != int(proto->header().robot_id())) return false;
+    // Counted for the end marker even when its body is bad: a re-send would bring the same bytes.
     received_[id->robot].insert(id->index);
+    auto sc = FromProto(*proto);
+    if (!sc) return false;
     if (id->index % config_.query_stride != 0 || descriptors_.count(*id)) return true;
     for (const auto& [other, other_sc] : descriptors_) {
         // Own keyframe vs anything stored; a lower robot's keyframe vs own ones only.

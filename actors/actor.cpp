@@ -15,7 +15,7 @@
 
 #include <zmq_addon.hpp>
 
-#include "slam/check.h"
+#include "slam/core/check.h"
 
 namespace certislam::actors {
 

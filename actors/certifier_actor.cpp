@@ -6,8 +6,8 @@
 #include <stdexcept>
 
 #include "certify/saddle_escape.h"
-#include "slam/connection_laplacian.h"
-#include "slam/pose_graph.h"
+#include "slam/backend/connection_laplacian.h"
+#include "slam/core/pose_graph.h"
 
 namespace certislam::actors {
 

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "actors/certifier_actor_lanczos.h"
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/node_actor.h"
 #include "certify/certificate.h"
 #include "certislam/v1/rbcd.pb.h"

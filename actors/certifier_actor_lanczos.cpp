@@ -8,9 +8,9 @@
 #include <limits>
 #include <random>
 
-#include "slam/connection_laplacian.h"
-#include "slam/partition.h"
-#include "slam/pose_graph.h"
+#include "slam/backend/connection_laplacian.h"
+#include "slam/core/partition.h"
+#include "slam/core/pose_graph.h"
 
 namespace certislam::actors {
 namespace {

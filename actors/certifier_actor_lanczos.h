@@ -13,8 +13,8 @@
 #include <utility>
 #include <vector>
 
-#include "certify/distributed_certificate.h"
-#include "slam/loop_closure.h"
+#include "certify/distributed/distributed_certificate.h"
+#include "slam/core/loop_closure.h"
 
 namespace certislam::actors {
 

@@ -6,7 +6,7 @@
 
 #include "actors/certifier_actor.h"
 #include "certify/saddle_escape.h"
-#include "slam/connection_laplacian.h"
+#include "slam/backend/connection_laplacian.h"
 
 namespace certislam::actors {
 namespace {

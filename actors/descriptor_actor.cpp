@@ -1,7 +1,7 @@
 // Descriptor: Keyframe in, Scan Context out (to own and peers' loop matchers).
 #include "actors/descriptor_actor.h"
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/ingest_actor.h"
 #include "certislam/v1/control.pb.h"
 

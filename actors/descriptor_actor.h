@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "actors/node_actor.h"
-#include "slam/scan_context.h"
+#include "slam/frontend/scan_context.h"
 
 namespace certislam::actors {
 

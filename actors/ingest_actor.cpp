@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "certislam/v1/control.pb.h"
 
 namespace certislam::actors {

@@ -12,7 +12,7 @@
 
 #include "actors/durable_log.h"
 #include "actors/node_actor.h"
-#include "slam/keyframe.h"
+#include "slam/core/keyframe.h"
 
 namespace certislam::actors {
 

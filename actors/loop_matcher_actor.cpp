@@ -8,10 +8,10 @@
 #include <stdexcept>
 #include <string>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/descriptor_actor.h"
 #include "certislam/v1/control.pb.h"
-#include "slam/downsample.h"
+#include "slam/frontend/downsample.h"
 
 namespace certislam::actors {
 namespace {
@@ -147,7 +147,7 @@ bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
     return true;
 }
 
-void LoopMatcherActor::Consider(const slam::MissionCandidate& c) {
+void LoopMatcherActor::Consider(const slam::LoopCandidate& c) {
     if (!own_clouds_.count(c.query.index) ||
         (c.match.robot == RobotId() && !own_clouds_.count(c.match.index))) {
         deferred_.push_back({c, {}});
@@ -240,7 +240,7 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
     return true;
 }
 
-void LoopMatcherActor::Verify(const slam::MissionCandidate& c,
+void LoopMatcherActor::Verify(const slam::LoopCandidate& c,
                               const slam::PointCloud& match_cloud) {
     const slam::PoseId query = c.query, match = c.match;
     const auto result = slam::RegisterScans(*own_clouds_.at(query.index), match_cloud,

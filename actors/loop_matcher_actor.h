@@ -19,11 +19,11 @@
 #include "actors/loop_matcher_actor_pcm.h"
 #include "actors/node_actor.h"
 #include "certislam/v1/loop_closure.pb.h"
-#include "slam/cloud_request_gate.h"
-#include "slam/loop_closure.h"
-#include "slam/pcm.h"
-#include "slam/registration.h"
-#include "slam/scan_context.h"
+#include "slam/frontend/cloud_request_gate.h"
+#include "slam/core/loop_closure.h"
+#include "slam/frontend/pcm.h"
+#include "slam/frontend/registration.h"
+#include "slam/frontend/scan_context.h"
 
 namespace certislam::actors {
 
@@ -86,15 +86,15 @@ class LoopMatcherActor final : public NodeActor {
 
   private:
     struct Pending {
-        slam::MissionCandidate candidate;  ///< query: own keyframe; match: the cloud's keyframe
+        slam::LoopCandidate candidate;  ///< query: own keyframe; match: the cloud's keyframe
         std::chrono::steady_clock::time_point sent;
     };
 
     bool OnDescriptor(const transport::Message& m);
     bool OnCloudRequest(const transport::Message& m);
     bool OnCloudReply(const transport::Message& m);
-    void Consider(const slam::MissionCandidate& candidate);
-    void Verify(const slam::MissionCandidate& candidate, const slam::PointCloud& match_cloud);
+    void Consider(const slam::LoopCandidate& candidate);
+    void Verify(const slam::LoopCandidate& candidate, const slam::PointCloud& match_cloud);
     void RequestCloud(std::uint64_t id, const Pending& p);
     slam::PointCloudPtr ReplyCloud(int index);
     void OnOwnKeyframe(const slam::Keyframe& keyframe);
@@ -112,7 +112,7 @@ class LoopMatcherActor final : public NodeActor {
     std::map<int, slam::PointCloudPtr> own_clouds_;            ///< own keyframe -> cloud
     std::map<int, slam::PointCloudPtr> reply_clouds_;          ///< own keyframe -> as sent
     std::map<slam::PoseId, slam::PointCloudPtr> peer_clouds_;  ///< fetched, kept (gate: once)
-    std::map<slam::PoseId, std::vector<slam::MissionCandidate>> waiting_;  ///< on a fetch
+    std::map<slam::PoseId, std::vector<slam::LoopCandidate>> waiting_;  ///< on a fetch
     slam::CloudRequestGate gate_;
     std::map<slam::PoseId, slam::ScanContext> descriptors_;  ///< own and lower robots'
     std::map<std::uint64_t, Pending> pending_;  ///< request id -> candidate that fetched

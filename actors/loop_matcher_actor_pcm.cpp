@@ -4,7 +4,7 @@
 
 #include <algorithm>
 
-#include "slam/se3.h"
+#include "slam/core/se3.h"
 
 namespace certislam::actors {
 

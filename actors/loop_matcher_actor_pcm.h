@@ -9,10 +9,10 @@
 #include <utility>
 #include <vector>
 
-#include "slam/loop_closure.h"
-#include "slam/pcm.h"
-#include "slam/pose_graph.h"
-#include "slam/registration.h"
+#include "slam/core/loop_closure.h"
+#include "slam/frontend/pcm.h"
+#include "slam/core/pose_graph.h"
+#include "slam/frontend/registration.h"
 
 namespace certislam::actors {
 

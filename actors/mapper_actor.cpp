@@ -11,11 +11,11 @@
 #include <string>
 #include <string_view>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/ingest_actor.h"
 #include "certislam/v1/control.pb.h"
 #include "certislam/v1/map.pb.h"
-#include "slam/check.h"
+#include "slam/core/check.h"
 
 namespace certislam::actors {
 namespace {

@@ -18,8 +18,8 @@
 
 #include "actors/node_actor.h"
 #include "certislam/v1/rbcd.pb.h"
-#include "slam/mesh.h"
-#include "slam/submap.h"
+#include "slam/mapping/mesh.h"
+#include "slam/mapping/submap.h"
 
 namespace certislam::actors {
 

@@ -3,7 +3,7 @@
 
 #include <stdexcept>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/ingest_actor.h"
 #include "actors/loop_matcher_actor.h"
 #include "actors/mapper_actor.h"

@@ -17,7 +17,7 @@
 #include "actors/node_actor.h"
 #include "actors/solver_state.h"
 #include "certislam/v1/certificate.pb.h"
-#include "slam/trajectory.h"
+#include "slam/core/trajectory.h"
 
 namespace certislam::actors {
 

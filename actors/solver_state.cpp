@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "slam/partition.h"
-#include "slam/rounding.h"
+#include "slam/core/partition.h"
+#include "slam/backend/rounding.h"
 
 namespace certislam::actors {
 namespace {

@@ -11,11 +11,11 @@
 #include <set>
 #include <vector>
 
-#include "actors/codec.h"
-#include "certify/mission.h"
-#include "slam/loop_closure.h"
-#include "slam/pose_graph.h"
-#include "slam/rbcd.h"
+#include "actors/convert.h"
+#include "certify/pipeline/mission.h"
+#include "slam/core/loop_closure.h"
+#include "slam/core/pose_graph.h"
+#include "slam/backend/rbcd.h"
 
 namespace certislam::actors {
 

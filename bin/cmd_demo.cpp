@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "bin/command.h"
-#include "bin/demo_mission.h"
+#include "bin/demo/demo_mission.h"
 
 namespace certislam::bin {
 namespace {

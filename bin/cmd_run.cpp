@@ -6,7 +6,7 @@
 #include <thread>
 
 #include "bin/command.h"
-#include "bin/team_config.h"
+#include "bin/config/team_config.h"
 
 namespace certislam::bin {
 namespace {

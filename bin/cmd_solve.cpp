@@ -11,8 +11,8 @@
 
 #include "bin/command.h"
 #include "certify/pose_graph_solver.h"
-#include "slam/g2o_io.h"
-#include "slam/multirobot_io.h"
+#include "slam/io/g2o_io.h"
+#include "slam/io/multirobot_io.h"
 
 namespace certislam::bin {
 namespace {

@@ -9,8 +9,8 @@
 #include <string>
 
 #include "certify/min_eigenpair.h"
-#include "slam/check.h"
-#include "slam/pose_graph.h"
+#include "slam/core/check.h"
+#include "slam/core/pose_graph.h"
 
 namespace certislam::certify {
 namespace {

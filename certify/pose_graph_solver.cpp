@@ -5,10 +5,10 @@
 #include <chrono>
 #include <stdexcept>
 
-#include "slam/chordal.h"
-#include "slam/connection_laplacian.h"
-#include "slam/partition.h"
-#include "slam/rounding.h"
+#include "slam/backend/chordal.h"
+#include "slam/backend/connection_laplacian.h"
+#include "slam/core/partition.h"
+#include "slam/backend/rounding.h"
 
 namespace certislam::certify {
 namespace {

@@ -8,9 +8,9 @@
 
 #include "certify/certificate.h"
 #include "certify/staircase.h"
-#include "slam/gnc.h"
-#include "slam/lm_baseline.h"
-#include "slam/pose_graph.h"
+#include "slam/backend/gnc.h"
+#include "slam/backend/lm_baseline.h"
+#include "slam/core/pose_graph.h"
 
 namespace certislam::certify {
 

@@ -5,9 +5,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "slam/check.h"
-#include "slam/rbcd.h"
-#include "slam/stiefel.h"
+#include "slam/core/check.h"
+#include "slam/backend/rbcd.h"
+#include "slam/backend/stiefel.h"
 
 namespace certislam::certify {
 

@@ -5,7 +5,7 @@
 #include <chrono>
 #include <stdexcept>
 
-#include "slam/connection_laplacian.h"
+#include "slam/backend/connection_laplacian.h"
 
 namespace certislam::certify {
 namespace {

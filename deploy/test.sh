@@ -15,6 +15,9 @@ if [ ${#sources[@]} -gt 0 ]; then
   clang-format --dry-run --Werror "${sources[@]}"
 fi
 
+echo "== layers (no include and no link edge runs upward)"
+python3 "$root/deploy/check_layers.py"
+
 echo "== build"
 "$root/deploy/build.sh" -DCERTISLAM_WERROR=ON -DCERTISLAM_BUILD_TESTS=ON
 
@@ -27,6 +30,8 @@ if [ "${TIDY:-1}" != "0" ]; then
         --extra-arg=-Wno-unknown-warning-option 2>/dev/null
   fi
 fi
+
+python3 "$root/deploy/check_layers.py" "$build"
 
 echo "== tests"
 (cd "$build" && ctest --output-on-failure -j "${JOBS:-2}" --timeout 900)

@@ -14,9 +14,9 @@
 #include "actors/certifier_actor.h"
 #include "certify/certificate.h"
 #include "certify/staircase.h"
-#include "slam/chordal.h"
-#include "slam/connection_laplacian.h"
-#include "slam/partition.h"
+#include "slam/backend/chordal.h"
+#include "slam/backend/connection_laplacian.h"
+#include "slam/core/partition.h"
 #include "tests/certify/test_graphs.h"
 
 namespace certislam::actors {

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <thread>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/ingest_actor.h"
 
 namespace certislam::actors {

@@ -7,13 +7,13 @@
 
 #include <thread>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/descriptor_actor.h"
 #include "actors/ingest_actor.h"
 #include "actors/loop_matcher_actor.h"
 #include "certislam/v1/control.pb.h"
-#include "slam/downsample.h"
-#include "slam/simulator.h"
+#include "slam/frontend/downsample.h"
+#include "slam/sim/simulator.h"
 
 namespace certislam::actors {
 namespace {

@@ -10,13 +10,13 @@
 #include <set>
 #include <thread>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/descriptor_actor.h"
 #include "actors/ingest_actor.h"
 #include "actors/loop_matcher_actor.h"
 #include "actors/solver_actor.h"
 #include "certislam/v1/control.pb.h"
-#include "slam/simulator.h"
+#include "slam/sim/simulator.h"
 
 namespace certislam::actors {
 namespace {

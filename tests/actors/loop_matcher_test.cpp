@@ -9,14 +9,14 @@
 #include <set>
 #include <thread>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/descriptor_actor.h"
 #include "actors/ingest_actor.h"
 #include "actors/loop_matcher_actor.h"
 #include "actors/loop_matcher_actor_pcm.h"
 #include "actors/solver_actor.h"
 #include "certislam/v1/control.pb.h"
-#include "slam/simulator.h"
+#include "slam/sim/simulator.h"
 #include "solver_fixture.h"
 
 namespace certislam::actors {

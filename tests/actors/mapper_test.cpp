@@ -10,7 +10,7 @@
 
 #include <thread>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/mapper_actor.h"
 #include "certislam/v1/map.pb.h"
 

@@ -10,12 +10,12 @@
 #include <random>
 #include <vector>
 
-#include "actors/codec.h"
+#include "actors/convert.h"
 #include "actors/ingest_actor.h"
 #include "actors/loop_matcher_actor.h"
 #include "actors/solver_state.h"
 #include "actors/wiring.h"
-#include "certify/mission.h"
+#include "certify/pipeline/mission.h"
 #include "certislam/v1/control.pb.h"
 
 namespace certislam::actors {

@@ -13,7 +13,7 @@
 #include <string>
 
 #include "certify/min_eigenpair.h"
-#include "slam/connection_laplacian.h"
+#include "slam/backend/connection_laplacian.h"
 #include "tests/certify/test_graphs.h"
 
 namespace certislam::certify {

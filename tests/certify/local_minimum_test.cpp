@@ -4,9 +4,9 @@
 #include <gtest/gtest.h>
 
 #include "certify/staircase.h"
-#include "slam/chordal.h"
-#include "slam/connection_laplacian.h"
-#include "slam/lm_baseline.h"
+#include "slam/backend/chordal.h"
+#include "slam/backend/connection_laplacian.h"
+#include "slam/backend/lm_baseline.h"
 #include "tests/certify/test_graphs.h"
 
 namespace certislam::certify {

@@ -1,7 +1,7 @@
 // GNC-TLS on the real multi-robot tunnels data (many outlier loop closures): the robust solve
 // keeps every odometry edge, rejects the loop closures that the least-squares solution cannot
 // fit, and the problem on the kept edges is certified.
-#include "slam/gnc.h"  // robust mode, tested through SolvePoseGraph (certify/)
+#include "slam/backend/gnc.h"  // robust mode, tested through SolvePoseGraph (certify/)
 
 #include <gtest/gtest.h>
 
@@ -9,9 +9,9 @@
 #include <string>
 
 #include "certify/pose_graph_solver.h"
-#include "slam/chordal.h"
-#include "slam/multirobot_io.h"
-#include "slam/partition.h"
+#include "slam/backend/chordal.h"
+#include "slam/io/multirobot_io.h"
+#include "slam/core/partition.h"
 
 namespace certislam::slam {
 namespace {

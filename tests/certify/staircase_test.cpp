@@ -7,9 +7,9 @@
 #include <cmath>
 #include <numbers>
 
-#include "slam/chordal.h"
-#include "slam/connection_laplacian.h"
-#include "slam/g2o_io.h"
+#include "slam/backend/chordal.h"
+#include "slam/backend/connection_laplacian.h"
+#include "slam/io/g2o_io.h"
 #include "tests/certify/test_graphs.h"
 
 namespace certislam::certify {

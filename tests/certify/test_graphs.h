@@ -6,7 +6,7 @@
 #include <numbers>
 #include <random>
 
-#include "slam/pose_graph.h"
+#include "slam/core/pose_graph.h"
 
 namespace certislam::certify::testing {
 

@@ -1,0 +1,97 @@
+// Conversions between the protobuf messages of proto/certislam/v1 and the slam/ and certify/
+// types: the one place where the two meet. Decoders treat their input as untrusted: they return
+// std::nullopt on anything malformed (the calling actor drops and counts it).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "certify/certificate.h"
+#include "certislam/v1/certificate.pb.h"
+#include "certislam/v1/keyframe.pb.h"
+#include "certislam/v1/loop_closure.pb.h"
+#include "certislam/v1/rbcd.pb.h"
+#include "certislam/v1/scan_context.pb.h"
+#include "slam/core/keyframe.h"
+#include "slam/core/loop_closure.h"
+#include "slam/core/pose_graph.h"
+#include "slam/frontend/scan_context.h"
+#include "transport/message.h"
+
+namespace certislam::actors {
+
+/// A header for a message sent by `robot_id` (sequence and stamp as given).
+v1::Header MakeHeader(int robot_id, std::uint64_t sequence, std::int64_t stamp_ns);
+
+/// PoseId to the wire.
+v1::PoseId ToProto(const slam::PoseId& id);
+/// PoseId from the wire; nullopt when a field is outside int range.
+std::optional<slam::PoseId> FromProto(const v1::PoseId& id);
+
+/// Pose to the wire (unit quaternion + translation).
+v1::Pose3 ToProto(const Eigen::Isometry3d& T);
+/// Pose from the wire; nullopt when not finite or the quaternion's norm is off 1 by > 1e-3.
+std::optional<Eigen::Isometry3d> FromProto(const v1::Pose3& pose);
+
+/// A keyframe as a message: Keyframe proto in the envelope, the cloud (float32 xyz, 12-byte
+/// stride) in binary frame 0 pointing at the cloud's own bytes (no copy on the way out).
+transport::Message EncodeKeyframe(const slam::Keyframe& keyframe, std::uint64_t sequence);
+/// The keyframe of a message; nullopt when malformed. Inside one process the cloud comes back
+/// as the very PointCloudPtr that was encoded (zero-copy); otherwise it is copied once from the
+/// frame into a new cloud.
+std::optional<slam::Keyframe> DecodeKeyframe(const transport::Message& message);
+
+/// How a cloud reply carries its cloud.
+enum class CloudWire {
+    kFloat32,  ///< float32 xyz (12-byte stride), zero-copy in-process
+    kCompact,  ///< slam/io/cloud_compression.h: 1 cm steps, Morton order, zstd (~3.5x smaller; order lost)
+};
+
+/// A cloud reply (found or not) for a cloud request, with the cloud in binary frame 0.
+transport::Message EncodeCloudReply(const v1::CloudReply& header_fields,
+                                    const slam::PointCloudPtr& cloud,
+                                    CloudWire wire = CloudWire::kCompact);
+/// The cloud of a CloudReply message (either wire form); nullopt when malformed or not found.
+std::optional<slam::PointCloudPtr> DecodeCloudReply(const transport::Message& message,
+                                                    v1::CloudReply* reply);
+
+/// How a descriptor travels.
+enum class DescriptorWire {
+    kFloat32,  ///< every bin and the ring key as float (4.9 kB for 20 x 60)
+    kCompact,  ///< slam/frontend/scan_context_compression.h: 5 cm height steps, zstd (0.5-0.8 kB on real scans)
+};
+
+/// A Scan Context descriptor of keyframe `id` on the wire.
+v1::ScanContextDescriptor ToProto(const slam::ScanContext& descriptor, const slam::PoseId& id,
+                                  DescriptorWire wire = DescriptorWire::kCompact);
+/// The descriptor back (either wire form; keys recomputed); nullopt when sizes disagree with
+/// num_rings x num_sectors, the compact bytes do not decode, or values are not finite.
+std::optional<slam::ScanContext> FromProto(const v1::ScanContextDescriptor& descriptor);
+
+/// A loop closure on the wire (kappa, tau in Information6; fitness as RMSE).
+v1::LoopClosure ToProto(const slam::LoopClosure& loop);
+/// A loop closure back; nullopt when ids or pose are malformed or weights are not > 0.
+std::optional<slam::LoopClosure> FromProto(const v1::LoopClosure& loop);
+
+/// Lifted poses of some pose ids: what RBCD solvers exchange.
+struct PoseBlocks {
+    std::vector<slam::PoseId> ids;  ///< one per block
+    Eigen::MatrixXd blocks;         ///< r x (d+1)|ids|, block k = [Y_k p_k]
+    std::uint64_t iteration = 0;    ///< sender's RBCD iteration
+    int staircase_level = 0;        ///< sender's saddle escapes so far
+};
+
+/// Public poses on the wire (d = 3).
+v1::PublicPoses ToProto(const PoseBlocks& poses);
+/// Public poses back; nullopt unless d = 3, 3 <= r <= 64 and the value count matches.
+std::optional<PoseBlocks> FromProto(const v1::PublicPoses& poses);
+
+/// A certificate's verdict and quantities as a report.
+v1::CertificateReport ToProto(const certify::CertificateResult& result, std::uint32_t rank);
+/// The verdict a certificate status maps to.
+v1::CertificateVerdict VerdictOf(certify::CertificateResult::Status status);
+
+}  // namespace certislam::actors

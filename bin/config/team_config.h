@@ -1,0 +1,52 @@
+// The configuration of `certislam run` and `certislam robot` (JSON): the team, the keyframe
+// source, the actors' settings and, for separate processes, addresses and CURVE keys.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "actors/robot_node.h"
+#include "actors/wiring.h"
+#include "bin/config/team_config_sources.h"
+
+namespace certislam::bin {
+
+/// One robot's network identity (robot mode).
+struct RobotEndpointConfig {
+    std::string host = "127.0.0.1";  ///< address peers connect to ("*" binds all interfaces)
+    int base_port = 0;               ///< edges on base_port + 1 .. base_port + 7 (map last)
+    std::string public_key;          ///< PREFIX.pub of `certislam keygen` (empty: no CURVE)
+    std::string secret_key;          ///< PREFIX.key, read only by the robot itself
+};
+
+/// Everything the configuration file says.
+struct TeamConfig {
+    std::vector<int> robots;                     ///< team, ascending
+    SourceConfig source;                         ///< where the keyframes come from
+    actors::RobotNodeConfig node;                ///< actors' settings
+    std::map<int, RobotEndpointConfig> network;  ///< robot mode: per robot
+    std::string log_dir;  ///< durable per-robot logs here (replayed on start); empty: none
+    std::string path;     ///< the file it came from (for messages)
+};
+
+/// The node settings of `robot` (its durable log paths under log_dir).
+actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot);
+
+/// Reads a JSON configuration. Throws std::runtime_error naming the file and the field.
+TeamConfig LoadTeamConfig(const std::string& path);
+
+/// The wiring of `robot` over tcp (robot mode; CURVE when keys are configured).
+actors::TeamWiring TcpWiring(const TeamConfig& config, int robot);
+
+/// Writes each robot's trajectory (TUM) and report.json into `dir` (none when empty); returns
+/// the JSON report. Per robot, where `source` has a reference: ATE RMSE after aligning the robot
+/// alone (`ate_rmse_own_alignment`), in the team frame without alignment
+/// (`ate_rmse_team_frame`), and the error of its recovered odometry frame (`offset_error_m`,
+/// `offset_error_deg`, worst over its keyframes).
+std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& robots,
+                             const std::vector<actors::SolverSnapshot>& snapshots,
+                             const TeamSource& source, std::uint64_t bytes_sent, double seconds);
+
+}  // namespace certislam::bin

@@ -1,0 +1,159 @@
+// One RobotNode per robot, inproc wiring, keyframes served from memory, poll until done.
+#include "bin/demo/demo_actors.h"
+
+#include <algorithm>
+#include <chrono>
+#include <memory>
+#include <thread>
+#include <zmq.hpp>
+
+#include "actors/robot_node.h"
+#include "actors/wiring.h"
+
+namespace certislam::bin {
+namespace {
+
+/// deploy/configs/sim2.json's settings, but every keyframe queries (like the direct pipeline's
+/// query_stride 1) and registration as the pipeline's loop stage sets it (0.4 m voxels).
+actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate) {
+    actors::RobotNodeConfig config;
+    config.mapping = voxel_m > 0;
+    if (config.mapping) config.mapper.map.tsdf.voxel_size_m = voxel_m;
+    config.solver.solver.rank = 5;
+    config.solver.solver.rbcd.rel_grad_tol = 1e-9;
+    // The certifiers run the distributed check (every robot its rows of S; the default), the
+    // anchor's centralised check only as the fallback of a silent round; false: the anchor's
+    // centralised check alone (`certislam demo --certificate centralised`).
+    config.certifier.distributed = distributed_certificate;
+    config.matcher.query_stride = 1;
+    config.matcher.max_sc_distance = 0.2;
+    config.matcher.registration.voxel_m = 0.4;
+    config.matcher.registration.max_correspondence_m = 2.5 * 0.4;
+    config.matcher.registration.inlier_distance_m =
+        std::max(config.matcher.registration.inlier_distance_m, 0.4);
+    return config;
+}
+
+const char* VerdictName(v1::CertificateVerdict verdict) {
+    switch (verdict) {
+        case v1::CERTIFICATE_VERDICT_CERTIFIED:
+            return "certified";
+        case v1::CERTIFICATE_VERDICT_NOT_CERTIFIED:
+            return "not certified";
+        case v1::CERTIFICATE_VERDICT_INCONCLUSIVE:
+            return "inconclusive";
+        default:
+            return "unspecified";
+    }
+}
+
+const char* PathName(v1::CertificatePath path) {
+    switch (path) {
+        case v1::CERTIFICATE_PATH_DISTRIBUTED:
+            return "distributed";
+        case v1::CERTIFICATE_PATH_CENTRALISED:
+            return "centralised";
+        case v1::CERTIFICATE_PATH_FALLBACK:
+            return "fallback";
+        default:
+            return "unspecified";
+    }
+}
+
+void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
+             ActorMissionResult* result) {
+    int loop_ends = 0;
+    for (const auto& node : nodes) {
+        const actors::SolverSnapshot snapshot = node->Snapshot();
+        result->trajectory.push_back(snapshot.trajectory);
+        result->anchor.push_back(snapshot.anchor);
+        result->inter_robot_loops.push_back(snapshot.inter_robot_loops);
+        loop_ends += snapshot.inter_robot_loops;  // each such loop touches two robots
+        result->loops_found.push_back(node->LoopsFound());
+        result->solver_steps.push_back(snapshot.steps);
+        result->bytes_sent += node->BytesSentToPeers();
+        for (const auto& [actor, bytes] : node->BytesSentToPeersByActor()) {
+            result->bytes_by_actor[actor] += bytes;
+        }
+        if (!snapshot.report) {
+            result->certified = false;
+            continue;
+        }
+        const auto& report = *snapshot.report;
+        const bool certified = report.verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
+        result->certified = (node == nodes.front() || result->certified) && certified;
+        if (node == nodes.front()) {  // the anchor's certifier reports to every robot
+            result->verdict = VerdictName(report.verdict());
+            result->certificate_path = PathName(report.path());
+            result->lambda_min = report.lambda_min();
+            result->suboptimality_bound = report.suboptimality_bound();
+            result->cost = report.objective();
+            result->rank = static_cast<int>(report.rank_r());
+        }
+    }
+    result->team_inter_robot_loops = loop_ends / 2;
+    const actors::CertifierActor& anchor = nodes.front()->Certifier();
+    result->certificate_rounds = anchor.Rounds();
+    result->lanczos_steps = anchor.LanczosSteps();
+    result->settled_skips = anchor.SettledSkips();
+}
+
+}  // namespace
+
+ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
+                                    double timeout_s, double voxel_m, bool distributed_certificate,
+                                    const ActorProgress& progress) {
+    using Clock = std::chrono::steady_clock;
+    const auto start = Clock::now();
+    std::vector<int> ids;
+    size_t total = 0;
+    for (size_t r = 0; r < robots.size(); ++r) {
+        ids.push_back(static_cast<int>(r));
+        total += robots[r].size();
+    }
+    const actors::RobotNodeConfig config = DemoConfig(voxel_m, distributed_certificate);
+    zmq::context_t context;
+    std::vector<std::unique_ptr<actors::RobotNode>> nodes;
+    for (int r : ids) {
+        auto next = std::make_shared<size_t>(0);
+        const auto* keyframes = &robots[static_cast<size_t>(r)];
+        actors::KeyframeSource source = [keyframes, next]() -> std::optional<slam::Keyframe> {
+            if (*next >= keyframes->size()) return std::nullopt;
+            return (*keyframes)[(*next)++];
+        };
+        nodes.push_back(std::make_unique<actors::RobotNode>(context, actors::InprocWiring(r, ids),
+                                                            std::move(source), config));
+    }
+    for (auto& node : nodes) node->Start();
+    ActorMissionResult result;
+    const auto deadline = start + std::chrono::duration<double>(timeout_s);
+    while (!result.done && Clock::now() < deadline) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        result.done = true;
+        size_t solved = 0;
+        for (auto& node : nodes) {
+            result.done = result.done && node->Done();
+            solved += static_cast<size_t>(node->Snapshot().num_poses);
+        }
+        if (progress && total > 0) {
+            progress(solved < total ? "actor graph: keyframes in" : "actor graph: certifying",
+                     0.9 * static_cast<double>(solved) / static_cast<double>(total));
+        }
+    }
+    result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    Collect(nodes, &result);
+    if (actors::MapperActor* mapper = nodes.front()->Mapper()) {
+        if (progress) progress("actor graph: fusing the mappers' submaps", 0.95);
+        // Two publish periods: the last re-anchorings reach robot 0's mapper.
+        std::this_thread::sleep_for(2 * config.mapper.publish_period);
+        result.mesh = mapper->FusedMesh(voxel_m);
+        result.submaps = mapper->Stats().own_submaps + mapper->Stats().peer_submaps;
+        for (auto& node : nodes) {
+            if (node->Mapper()) result.map_bytes_sent += node->Mapper()->Stats().submap_bytes_sent;
+        }
+    }
+    for (auto& node : nodes) node->Stop();
+    return result;
+}
+
+}  // namespace certislam::bin

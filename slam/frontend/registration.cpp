@@ -1,0 +1,92 @@
+// RegisterScans with PCL's GICP (the project's only PCL registration translation unit: one such
+// TU takes ~25 s to compile, so no PCL header leaves this file).
+#include "slam/frontend/registration.h"
+
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl/registration/gicp.h>
+
+#include "slam/frontend/downsample.h"
+
+namespace certislam::slam {
+namespace {
+
+using PclCloud = pcl::PointCloud<pcl::PointXYZ>;
+
+PclCloud::Ptr ToPcl(const PointCloud& cloud) {
+    auto out = std::make_shared<PclCloud>();
+    out->resize(cloud.size());
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+        (*out)[i].getVector3fMap() = cloud[i];
+    }
+    return out;
+}
+
+struct StageResult {
+    Eigen::Matrix4f T_target_source;
+    bool converged = false;
+};
+
+// One GICP run (Segal et al. 2009) from `guess`.
+StageResult RunGicp(const PointCloud& source, const PointCloud& target,
+                    const Eigen::Matrix4f& guess, double max_correspondence_m,
+                    const RegistrationConfig& config) {
+    pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ> gicp;
+    gicp.setInputSource(ToPcl(source));
+    gicp.setInputTarget(ToPcl(target));
+    gicp.setMaxCorrespondenceDistance(max_correspondence_m);
+    gicp.setMaximumIterations(config.max_iterations);
+    gicp.setCorrespondenceRandomness(config.covariance_neighbours);
+    gicp.setTransformationEpsilon(1e-6);
+    gicp.setRotationEpsilon(1e-6);
+    PclCloud aligned;
+    gicp.align(aligned, guess);
+    return {gicp.getFinalTransformation(), gicp.hasConverged()};
+}
+
+Eigen::Isometry3d ToIsometry(const Eigen::Matrix4f& m) {
+    const Eigen::Matrix4d md = m.cast<double>();
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::Quaterniond(Eigen::Matrix3d(md.topLeftCorner<3, 3>()))
+                     .normalized()
+                     .toRotationMatrix();
+    T.translation() = md.topRightCorner<3, 1>();
+    return T;
+}
+
+}  // namespace
+
+RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& target,
+                                 const Eigen::Isometry3d& T_target_source_guess,
+                                 const RegistrationConfig& config) {
+    config.Validate();
+    RegistrationResult result;
+    result.T_target_source = T_target_source_guess;
+    const PointCloud src = VoxelDownsample(source, config.voxel_m);
+    const PointCloud tgt = VoxelDownsample(target, config.voxel_m);
+    result.num_source_points = static_cast<int>(src.size());
+    result.num_target_points = static_cast<int>(tgt.size());
+    if (result.num_source_points < config.min_points ||
+        result.num_target_points < config.min_points) {
+        result.status = RegistrationResult::Status::kTooFewPoints;
+        return result;
+    }
+    Eigen::Matrix4f T = T_target_source_guess.matrix().cast<float>();
+    if (config.coarse_voxel_m > 0) {  // coarse stage: wide gate absorbs SC's metres of offset
+        const PointCloud src_c = VoxelDownsample(source, config.coarse_voxel_m);
+        const PointCloud tgt_c = VoxelDownsample(target, config.coarse_voxel_m);
+        if (static_cast<int>(std::min(src_c.size(), tgt_c.size())) >= config.min_points) {
+            const StageResult coarse =
+                RunGicp(src_c, tgt_c, T, config.coarse_max_correspondence_m, config);
+            if (coarse.converged) T = coarse.T_target_source;
+        }
+    }
+    const StageResult fine = RunGicp(src, tgt, T, config.max_correspondence_m, config);
+    result.converged = fine.converged;
+    result.T_target_source = ToIsometry(fine.T_target_source);
+    const RegistrationResult::Status quality = EvaluateAlignment(src, tgt, config, result);
+    result.status = result.converged ? quality : RegistrationResult::Status::kNotConverged;
+    return result;
+}
+
+}  // namespace certislam::slam

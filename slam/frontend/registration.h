@@ -1,0 +1,83 @@
+// Loop-closure verification: GICP registration of a candidate pair seeded with the Scan Context
+// yaw, with fitness, a degeneracy check and an information matrix for the back end.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "slam/core/keyframe.h"
+
+namespace certislam::slam {
+
+/// Settings of scan-to-scan registration and of the acceptance tests.
+struct RegistrationConfig {
+    double voxel_m = 0.2;                       ///< fine-stage voxel size, > 0
+    double max_correspondence_m = 1.0;          ///< fine-stage GICP correspondence gate, > 0
+    double coarse_voxel_m = 1.0;                ///< coarse stage voxel (0 = no coarse stage)
+    double coarse_max_correspondence_m = 5.0;   ///< coarse-stage gate, > 0 (absorbs SC's metres)
+    int max_iterations = 50;                    ///< GICP iterations per stage, >= 1
+    int covariance_neighbours = 20;             ///< k of GICP's local covariances, >= 5
+    int min_points = 100;                       ///< fewer points after downsampling: rejected
+    double inlier_distance_m = 0.5;             ///< fitness gate on nearest-neighbour distance
+    double min_fitness = 0.3;                   ///< reject below this inlier fraction, [0, 1]
+    double min_translation_eigen_ratio = 0.02;  ///< reject when lambda_min/lambda_max of the
+                                                ///< Hessian's translation block is below, [0, 1)
+    double min_translation_sigma_m = 0.05;      ///< covariance floor (unmodelled errors), > 0
+    double min_rotation_sigma_rad = 0.005;      ///< covariance floor, > 0
+
+    /// Throws std::invalid_argument naming the field, its value and the rule.
+    void Validate() const;
+};
+
+/// 6x6 information of a relative pose, ordered (tx ty tz rx ry rz), for a perturbation on the
+/// right: T = T_hat * exp(delta) (delta in the source frame), as g2o's EDGE_SE3 uses it.
+using Information6 = Eigen::Matrix<double, 6, 6>;
+
+/// How registration ended and what it found.
+struct RegistrationResult {
+    enum class Status {
+        kAccepted,      ///< converged, fit and well-conditioned: a usable loop closure
+        kTooFewPoints,  ///< a cloud had fewer than min_points after downsampling
+        kNotConverged,  ///< GICP did not converge
+        kLowFitness,    ///< inlier fraction below min_fitness
+        kDegenerate,    ///< translation poorly constrained (corridor, tunnel, open field)
+    };
+    Status status = Status::kTooFewPoints;                              ///< verdict
+    Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  ///< maps source points
+                                                                        ///< into the target
+    Information6 information = Information6::Zero();  ///< see Information6 (floors applied)
+    double kappa = 0.0;          ///< rotation weight, SE-Sync convention: 3 / (2 tr(Omega_RR^-1))
+    double tau = 0.0;            ///< translation weight: 3 / tr(Omega_tt^-1)
+    bool converged = false;      ///< GICP's own convergence flag (fine stage)
+    double fitness = 0.0;        ///< fraction of source points with a target point within
+                                 ///< inlier_distance_m after alignment, [0, 1]
+    double inlier_rmse_m = 0.0;  ///< RMS point-to-plane residual of those inliers
+    double translation_eigen_ratio = 0.0;  ///< lambda_min / lambda_max of sum n n^T
+    Eigen::Vector3d translation_eigenvalues = Eigen::Vector3d::Zero();  ///< ascending, per point
+    int num_source_points = 0;                                          ///< after downsampling
+    int num_target_points = 0;                                          ///< after downsampling
+
+    /// True for Status::kAccepted.
+    bool accepted() const { return status == Status::kAccepted; }
+};
+
+/// A pure-yaw initial guess (e.g. ScanContextMatch::yaw_rad for query = source).
+Eigen::Isometry3d YawGuess(double yaw_rad);
+
+/// Registers `source` onto `target` (both in their sensor frames) from `T_target_source_guess`:
+/// voxel downsampling, a coarse then a fine GICP stage, then fitness, point-to-plane Hessian,
+/// degeneracy check and information. Never throws on bad geometry: the status says.
+RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& target,
+                                 const Eigen::Isometry3d& T_target_source_guess,
+                                 const RegistrationConfig& config);
+
+/// Fitness, Hessian, degeneracy and information of an alignment already found (used by
+/// RegisterScans; exposed for tests and other registration back ends). `source` and `target`
+/// are the downsampled clouds; `result.T_target_source` must be set; fills the other fields
+/// except status/converged, and returns the status the quality tests give (kAccepted if all
+/// pass).
+RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const PointCloud& target,
+                                             const RegistrationConfig& config,
+                                             RegistrationResult& result);
+
+}  // namespace certislam::slam

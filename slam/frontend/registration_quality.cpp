@@ -1,0 +1,150 @@
+// Quality of an alignment: fitness, point-to-plane Hessian, degeneracy test and information
+// (no PCL here: registration.cpp is the only PCL translation unit).
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+
+#include "slam/core/check.h"
+#include "slam/frontend/point_kdtree.h"
+#include "slam/frontend/registration.h"
+#include "slam/core/se3.h"
+
+namespace certislam::slam {
+namespace {
+
+[[noreturn]] void Invalid(const std::string& field, double value, const std::string& rule) {
+    throw std::invalid_argument("RegistrationConfig." + field + " = " + std::to_string(value) +
+                                ": must be " + rule);
+}
+
+// Unit normal of the target around point `i` (smallest-eigenvalue direction of its k
+// neighbours' covariance), cached per target point.
+class TargetNormals {
+  public:
+    TargetNormals(const PointCloud& target, const PointKdTree& tree, int k)
+        : target_(target), tree_(tree), k_(static_cast<std::size_t>(k)) {}
+
+    const Eigen::Vector3d& At(std::size_t i) {
+        const auto it = cache_.find(i);
+        if (it != cache_.end()) return it->second;
+        tree_.Knn(target_[i], k_, indices_, squared_);
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (const std::size_t j : indices_) mean += target_[j].cast<double>();
+        mean /= static_cast<double>(indices_.size());
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (const std::size_t j : indices_) {
+            const Eigen::Vector3d d = target_[j].cast<double>() - mean;
+            cov += d * d.transpose();
+        }
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+        return cache_.emplace(i, eig.eigenvectors().col(0)).first->second;
+    }
+
+  private:
+    const PointCloud& target_;
+    const PointKdTree& tree_;
+    std::size_t k_;
+    std::vector<std::size_t> indices_;
+    std::vector<float> squared_;
+    std::unordered_map<std::size_t, Eigen::Vector3d> cache_;
+};
+
+// Applies the covariance floor: Omega <- (Omega^+ + diag(floor^2))^-1, through the eigen
+// decomposition so unconstrained directions (zero eigenvalues) stay finite.
+Matrix6 FloorCovariance(const Matrix6& information, const RegistrationConfig& config) {
+    const Eigen::SelfAdjointEigenSolver<Matrix6> eig(0.5 * (information + information.transpose()));
+    Vector6 inv_eigen;
+    const double max_eigen = std::max(eig.eigenvalues().maxCoeff(), 1e-300);
+    for (int i = 0; i < 6; ++i) {
+        const double l = eig.eigenvalues()[i];
+        inv_eigen[i] = l > 1e-12 * max_eigen ? 1.0 / l : 1e12 / max_eigen;
+    }
+    Matrix6 covariance =
+        eig.eigenvectors() * inv_eigen.asDiagonal() * eig.eigenvectors().transpose();
+    const double st = config.min_translation_sigma_m, sr = config.min_rotation_sigma_rad;
+    covariance.diagonal() +=
+        (Vector6() << st * st, st * st, st * st, sr * sr, sr * sr, sr * sr).finished();
+    return covariance.inverse();
+}
+
+}  // namespace
+
+void RegistrationConfig::Validate() const {
+    if (!(voxel_m > 0)) Invalid("voxel_m", voxel_m, "> 0");
+    if (!(max_correspondence_m > 0)) Invalid("max_correspondence_m", max_correspondence_m, "> 0");
+    if (!(coarse_voxel_m >= 0)) Invalid("coarse_voxel_m", coarse_voxel_m, ">= 0");
+    if (!(coarse_max_correspondence_m > 0)) {
+        Invalid("coarse_max_correspondence_m", coarse_max_correspondence_m, "> 0");
+    }
+    if (max_iterations < 1) Invalid("max_iterations", max_iterations, ">= 1");
+    if (covariance_neighbours < 5) Invalid("covariance_neighbours", covariance_neighbours, ">= 5");
+    if (min_points < 6) Invalid("min_points", min_points, ">= 6");
+    if (!(inlier_distance_m > 0)) Invalid("inlier_distance_m", inlier_distance_m, "> 0");
+    if (!(min_fitness >= 0 && min_fitness <= 1)) Invalid("min_fitness", min_fitness, "in [0, 1]");
+    if (!(min_translation_eigen_ratio >= 0 && min_translation_eigen_ratio < 1)) {
+        Invalid("min_translation_eigen_ratio", min_translation_eigen_ratio, "in [0, 1)");
+    }
+    if (!(min_translation_sigma_m > 0)) {
+        Invalid("min_translation_sigma_m", min_translation_sigma_m, "> 0");
+    }
+    if (!(min_rotation_sigma_rad > 0)) {
+        Invalid("min_rotation_sigma_rad", min_rotation_sigma_rad, "> 0");
+    }
+}
+
+Eigen::Isometry3d YawGuess(double yaw_rad) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    return T;
+}
+
+RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const PointCloud& target,
+                                             const RegistrationConfig& config,
+                                             RegistrationResult& result) {
+    using Status = RegistrationResult::Status;
+    CERTISLAM_CHECK(!target.empty());
+    const PointKdTree tree(target);
+    TargetNormals normals(target, tree, config.covariance_neighbours);
+    const Eigen::Isometry3f T = result.T_target_source.cast<float>();
+    const float gate = static_cast<float>(config.inlier_distance_m * config.inlier_distance_m);
+    Matrix6 hessian = Matrix6::Zero();  // left perturbation, twist (v, w), target frame
+    double squared_sum = 0.0;
+    int inliers = 0;
+    for (const Eigen::Vector3f& s : source) {
+        const Eigen::Vector3f p = T * s;
+        std::size_t j = 0;
+        float d2 = 0.0f;
+        if (!tree.Nearest(p, j, d2) || d2 > gate) continue;
+        const Eigen::Vector3d& n = normals.At(j);
+        const Eigen::Vector3d pd = p.cast<double>();
+        const double r = n.dot(pd - target[j].cast<double>());  // point-to-plane residual
+        Vector6 J;
+        J << n, pd.cross(n);  // d r / d(v, w) for p' = p + w x p + v
+        hessian += J * J.transpose();
+        squared_sum += r * r;
+        ++inliers;
+    }
+    result.fitness = source.empty() ? 0.0 : static_cast<double>(inliers) / source.size();
+    result.inlier_rmse_m = inliers > 0 ? std::sqrt(squared_sum / inliers) : 0.0;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> trans(hessian.topLeftCorner<3, 3>());
+    result.translation_eigenvalues = trans.eigenvalues() / std::max(inliers, 1);
+    const double max_eigen = trans.eigenvalues()[2];
+    result.translation_eigen_ratio = max_eigen > 0 ? trans.eigenvalues()[0] / max_eigen : 0.0;
+    // Residual variance, with a 1 cm floor so a perfect synthetic fit stays finite.
+    const double variance = std::max(inliers > 6 ? squared_sum / (inliers - 6) : 1.0, 1e-4);
+    const Matrix6 ad = Adjoint(result.T_target_source);
+    result.information = FloorCovariance(ad.transpose() * (hessian / variance) * ad, config);
+    // SE-Sync weights from the diagonal blocks (MATH.md: off-diagonal blocks ignored).
+    result.tau = 3.0 / result.information.topLeftCorner<3, 3>().inverse().trace();
+    result.kappa = 3.0 / (2.0 * result.information.bottomRightCorner<3, 3>().inverse().trace());
+    if (inliers < 6 || result.fitness < config.min_fitness) return Status::kLowFitness;
+    if (result.translation_eigen_ratio < config.min_translation_eigen_ratio) {
+        return Status::kDegenerate;
+    }
+    return Status::kAccepted;
+}
+
+}  // namespace certislam::slam

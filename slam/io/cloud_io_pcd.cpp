@@ -1,0 +1,291 @@
+// The PCD reader: header, ASCII, binary and binary_compressed (LZF) point data.
+#include <algorithm>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "slam/io/cloud_io_internal.h"
+
+namespace certislam::slam {
+namespace cloud_io_internal {
+namespace {
+
+using Status = CloudReadResult::Status;
+
+struct PcdField {
+    std::string name;
+    ScalarType type;
+    int count = 1;
+    std::size_t offset = 0;  ///< byte offset inside one point record (binary layout)
+};
+
+struct PcdHeader {
+    std::vector<PcdField> fields;
+    std::vector<int> sizes, counts;
+    std::vector<char> types;
+    long long width = -1, height = 1, points = -1;
+    std::string data;
+    std::size_t data_offset = 0;      ///< first byte after the DATA line
+    int data_line = 0;                ///< line number of the DATA line
+    std::size_t point_bytes = 0;      ///< bytes per point record
+    int xyz[3] = {-1, -1, -1};        ///< field index of x, y, z
+    int ascii_xyz[3] = {-1, -1, -1};  ///< token index of x, y, z in an ASCII line
+};
+
+std::optional<ScalarType> ToScalarType(char type, int size) {
+    if (type == 'F' && (size == 4 || size == 8)) return ScalarType{ScalarKind::kFloat, size};
+    const bool int_size = size == 1 || size == 2 || size == 4 || size == 8;
+    if (type == 'I' && int_size) return ScalarType{ScalarKind::kInt, size};
+    if (type == 'U' && int_size) return ScalarType{ScalarKind::kUint, size};
+    return std::nullopt;
+}
+
+// Reads one header keyword line into `h`; returns an error text or "".
+std::string ParseHeaderLine(const std::vector<std::string_view>& w, PcdHeader& h) {
+    const std::string_view key = w[0];
+    const std::size_t n = w.size() - 1;
+    if (key == "FIELDS" || key == "COLUMNS") {
+        for (std::size_t i = 1; i < w.size(); ++i) h.fields.push_back({std::string(w[i]), {}});
+    } else if (key == "SIZE" || key == "COUNT") {
+        auto& out = key == "SIZE" ? h.sizes : h.counts;
+        for (std::size_t i = 1; i < w.size(); ++i) {
+            const auto v = ParseCount(w[i]);
+            if (!v || *v < 1 || *v > 1 << 20) return std::string(key) + " has a bad value";
+            out.push_back(static_cast<int>(*v));
+        }
+    } else if (key == "TYPE") {
+        for (std::size_t i = 1; i < w.size(); ++i) {
+            if (w[i].size() != 1) return "TYPE entries must be one of F I U";
+            h.types.push_back(w[i][0]);
+        }
+    } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
+        const auto v = n == 1 ? ParseCount(w[1]) : std::nullopt;
+        if (!v) return std::string(key) + " needs one non-negative integer";
+        (key == "WIDTH" ? h.width : key == "HEIGHT" ? h.height : h.points) = *v;
+    } else if (key == "DATA") {
+        if (n != 1) return "DATA needs one of ascii, binary, binary_compressed";
+        h.data = std::string(w[1]);
+    } else if (key != "VERSION" && key != "VIEWPOINT") {
+        return "unknown header keyword '" + std::string(key) + "'";
+    }
+    return "";
+}
+
+// Checks SIZE/TYPE/COUNT against FIELDS and lays out the record; returns an error text or "".
+std::string FinishHeader(PcdHeader& h) {
+    const std::size_t nf = h.fields.size();
+    if (nf == 0) return "no FIELDS line";
+    if (h.counts.empty()) h.counts.assign(nf, 1);
+    if (h.sizes.size() != nf || h.types.size() != nf || h.counts.size() != nf) {
+        return "FIELDS has " + std::to_string(nf) + " entries but SIZE/TYPE/COUNT have " +
+               std::to_string(h.sizes.size()) + "/" + std::to_string(h.types.size()) + "/" +
+               std::to_string(h.counts.size());
+    }
+    if (h.points < 0) h.points = h.width < 0 ? -1 : h.width * h.height;
+    if (h.points < 0) return "neither POINTS nor WIDTH given";
+    int token = 0;
+    for (std::size_t i = 0; i < nf; ++i) {
+        const auto type = ToScalarType(h.types[i], h.sizes[i]);
+        if (!type) {
+            return "field '" + h.fields[i].name + "' has TYPE " + h.types[i] + " with SIZE " +
+                   std::to_string(h.sizes[i]);
+        }
+        h.fields[i].type = *type;
+        h.fields[i].count = h.counts[i];
+        h.fields[i].offset = h.point_bytes;
+        h.point_bytes += static_cast<std::size_t>(h.sizes[i]) * h.counts[i];
+        const char* names[3] = {"x", "y", "z"};
+        for (int a = 0; a < 3; ++a) {
+            if (h.fields[i].name == names[a]) {
+                h.xyz[a] = static_cast<int>(i);
+                h.ascii_xyz[a] = token;
+            }
+        }
+        token += h.counts[i];
+    }
+    if (h.xyz[0] < 0 || h.xyz[1] < 0 || h.xyz[2] < 0) return "FIELDS lacks one of x y z";
+    return "";
+}
+
+// Parses the header; on failure fills `result` and returns false.
+bool ParseHeader(const std::string& path, const std::vector<unsigned char>& bytes, PcdHeader& h,
+                 CloudReadResult& result) {
+    std::size_t offset = 0;
+    int line_no = 0;
+    while (offset < bytes.size()) {
+        const LineView line = NextLine(bytes, offset);
+        offset = line.next;
+        ++line_no;
+        const auto words = SplitWords(line.text);
+        if (words.empty() || words[0][0] == '#') continue;
+        if (const std::string err = ParseHeaderLine(words, h); !err.empty()) {
+            result = Fail(Status::kBadHeader, path, line_no, err);
+            return false;
+        }
+        if (!h.data.empty()) {
+            h.data_offset = offset;
+            h.data_line = line_no;
+            if (const std::string err = FinishHeader(h); !err.empty()) {
+                result = Fail(Status::kBadHeader, path, line_no, err);
+                return false;
+            }
+            return true;
+        }
+    }
+    result = Fail(Status::kBadHeader, path, line_no, "no DATA line (not a PCD file?)");
+    return false;
+}
+
+CloudReadResult ReadAscii(const std::string& path, const std::vector<unsigned char>& bytes,
+                          const PcdHeader& h) {
+    CloudReadResult result;
+    result.cloud.reserve(static_cast<std::size_t>(h.points));
+    std::size_t offset = h.data_offset;
+    int line_no = h.data_line;
+    std::size_t tokens = 0;
+    for (const auto& f : h.fields) tokens += static_cast<std::size_t>(f.count);
+    long long read = 0;
+    while (read < h.points && offset < bytes.size()) {
+        const LineView line = NextLine(bytes, offset);
+        offset = line.next;
+        ++line_no;
+        const auto words = SplitWords(line.text);
+        if (words.empty()) continue;
+        if (words.size() != tokens) {
+            return Fail(Status::kBadData, path, line_no,
+                        "expected " + std::to_string(tokens) + " values, found " +
+                            std::to_string(words.size()));
+        }
+        double v[3];
+        for (int a = 0; a < 3; ++a) {
+            const auto parsed = ParseDouble(words[static_cast<std::size_t>(h.ascii_xyz[a])]);
+            if (!parsed) return Fail(Status::kBadData, path, line_no, "not a number");
+            v[a] = *parsed;
+        }
+        AddPoint(result, v[0], v[1], v[2]);
+        ++read;
+    }
+    if (read < h.points) {
+        return Fail(Status::kTruncated, path, line_no,
+                    "POINTS " + std::to_string(h.points) + " but only " + std::to_string(read) +
+                        " data lines");
+    }
+    return result;
+}
+
+// Decodes points from a buffer: record-major (binary) or field-major (binary_compressed).
+CloudReadResult DecodeBinary(const unsigned char* data, const PcdHeader& h, bool field_major) {
+    CloudReadResult result;
+    const auto n = static_cast<std::size_t>(h.points);
+    result.cloud.reserve(n);
+    std::size_t field_start[3], stride[3];
+    for (int a = 0; a < 3; ++a) {
+        const PcdField& f = h.fields[static_cast<std::size_t>(h.xyz[a])];
+        field_start[a] = field_major ? f.offset * n : f.offset;
+        stride[a] = field_major ? static_cast<std::size_t>(f.type.size) * f.count : h.point_bytes;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+        double v[3];
+        for (int a = 0; a < 3; ++a) {
+            const PcdField& f = h.fields[static_cast<std::size_t>(h.xyz[a])];
+            v[a] = DecodeScalar(data + field_start[a] + i * stride[a], f.type);
+        }
+        AddPoint(result, v[0], v[1], v[2]);
+    }
+    return result;
+}
+
+// LZF decompression (liblzf format, as PCL writes binary_compressed): returns false on a
+// malformed stream. Written here so the reader needs no PCL.
+bool LzfDecompress(const unsigned char* in, std::size_t in_size, unsigned char* out,
+                   std::size_t out_size) {
+    const unsigned char* ip = in;
+    const unsigned char* const in_end = in + in_size;
+    unsigned char* op = out;
+    unsigned char* const out_end = out + out_size;
+    while (ip < in_end) {
+        std::size_t ctrl = *ip++;
+        if (ctrl < 32) {  // literal run of ctrl + 1 bytes
+            ++ctrl;
+            if (op + ctrl > out_end || ip + ctrl > in_end) return false;
+            std::memcpy(op, ip, ctrl);
+            op += ctrl;
+            ip += ctrl;
+        } else {  // back reference
+            std::size_t len = ctrl >> 5;
+            if (len == 7) {
+                if (ip >= in_end) return false;
+                len += *ip++;
+            }
+            if (ip >= in_end) return false;
+            const std::size_t back = ((ctrl & 0x1f) << 8) + *ip++ + 1;
+            len += 2;
+            if (back > static_cast<std::size_t>(op - out) || op + len > out_end) return false;
+            const unsigned char* ref = op - back;
+            for (std::size_t k = 0; k < len; ++k) *op++ = *ref++;  // may overlap
+        }
+    }
+    return op == out_end;
+}
+
+CloudReadResult ReadCompressed(const std::string& path, const std::vector<unsigned char>& bytes,
+                               const PcdHeader& h) {
+    const std::size_t avail = bytes.size() - h.data_offset;
+    if (avail < 8) return Fail(Status::kTruncated, path, 0, "binary_compressed sizes missing");
+    std::uint32_t compressed = 0, uncompressed = 0;
+    std::memcpy(&compressed, bytes.data() + h.data_offset, 4);
+    std::memcpy(&uncompressed, bytes.data() + h.data_offset + 4, 4);
+    const std::size_t expected = h.point_bytes * static_cast<std::size_t>(h.points);
+    if (uncompressed != expected) {
+        return Fail(Status::kBadData, path, 0,
+                    "binary_compressed: uncompressed size " + std::to_string(uncompressed) +
+                        " != POINTS x point size " + std::to_string(expected));
+    }
+    if (avail - 8 < compressed) {
+        return Fail(Status::kTruncated, path, 0,
+                    "binary_compressed: " + std::to_string(compressed) +
+                        " compressed bytes declared, " + std::to_string(avail - 8) + " present");
+    }
+    std::vector<unsigned char> raw(expected);
+    if (expected > 0 &&
+        !LzfDecompress(bytes.data() + h.data_offset + 8, compressed, raw.data(), expected)) {
+        return Fail(Status::kBadData, path, 0, "binary_compressed: corrupt LZF stream");
+    }
+    return DecodeBinary(raw.data(), h, /*field_major=*/true);
+}
+
+}  // namespace
+
+CloudReadResult ParsePcd(const std::string& path, const std::vector<unsigned char>& bytes) {
+    PcdHeader h;
+    CloudReadResult result;
+    if (!ParseHeader(path, bytes, h, result)) return result;
+    if (h.data == "ascii") return ReadAscii(path, bytes, h);
+    if (h.data == "binary_compressed") return ReadCompressed(path, bytes, h);
+    if (h.data != "binary") {
+        return Fail(Status::kUnsupported, path, h.data_line, "DATA '" + h.data + "' unknown");
+    }
+    const std::size_t expected = h.point_bytes * static_cast<std::size_t>(h.points);
+    const std::size_t avail = bytes.size() - h.data_offset;
+    if (avail < expected) {
+        return Fail(Status::kTruncated, path, 0,
+                    "POINTS " + std::to_string(h.points) + " x " + std::to_string(h.point_bytes) +
+                        " bytes = " + std::to_string(expected) + " bytes of data expected, " +
+                        std::to_string(avail) + " present");
+    }
+    return DecodeBinary(bytes.data() + h.data_offset, h, /*field_major=*/false);
+}
+
+}  // namespace cloud_io_internal
+
+CloudReadResult ReadPcd(const std::string& path) {
+    const auto bytes = cloud_io_internal::ReadFileBytes(path);
+    if (!bytes) {
+        return cloud_io_internal::Fail(CloudReadResult::Status::kCannotOpen, path, 0,
+                                       "cannot open or read the file");
+    }
+    return cloud_io_internal::ParsePcd(path, *bytes);
+}
+
+}  // namespace certislam::slam

@@ -1,0 +1,40 @@
+// TsdfVolume::FuseVoxels: resampling another volume's voxels into this one (submap fusion).
+#include <algorithm>
+#include <cmath>
+
+#include "slam/mapping/tsdf_impl.h"
+
+namespace certislam::slam {
+
+void TsdfVolume::FuseVoxels(const TsdfVolume& other, const Eigen::Isometry3d& T_this_other) {
+    Impl& im = *impl_;
+    const Impl& src = *other.impl_;
+    const double inv_voxel = 1.0 / im.config.voxel_size_m;
+    const double src_voxel = src.config.voxel_size_m;
+    const float max_sdf = static_cast<float>(im.config.truncation_m());
+    const Eigen::Affine3d T = Eigen::Scaling(inv_voxel) * T_this_other * Eigen::Scaling(src_voxel);
+    auto s_acc = im.sdf->getAccessor();
+    auto w_acc = im.weight->getAccessor();
+    const auto src_s = src.sdf->getConstAccessor();
+    openvdb::Coord last_leaf = openvdb::Coord::max();
+    for (auto it = src.weight->cbeginValueOn(); it; ++it) {
+        const openvdb::Coord c = it.getCoord();
+        const Eigen::Vector3d q = T * Eigen::Vector3d(c.x(), c.y(), c.z());
+        const openvdb::Coord ijk(static_cast<int>(std::lround(q.x())),
+                                 static_cast<int>(std::lround(q.y())),
+                                 static_cast<int>(std::lround(q.z())));
+        const float w = *it;
+        const float old_w = w_acc.getValue(ijk);
+        const float new_w = old_w + w;
+        const float value = std::min(src_s.getValue(c), max_sdf);
+        s_acc.setValue(ijk, (s_acc.getValue(ijk) * old_w + value * w) / new_w);
+        w_acc.setValue(ijk, std::min(new_w, im.config.max_weight));
+        const openvdb::Coord leaf = ijk & ~openvdb::Coord::ValueType(7);
+        if (leaf != last_leaf) {
+            im.dirty_blocks.insert(leaf);
+            last_leaf = leaf;
+        }
+    }
+}
+
+}  // namespace certislam::slam

@@ -1,0 +1,40 @@
+// Private to tsdf*.cpp: the OpenVDB state behind TsdfVolume (kept out of tsdf.h, which spreads).
+#pragma once
+
+#include <openvdb/openvdb.h>
+
+#include <cstdint>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "slam/mapping/tsdf.h"
+
+namespace certislam::slam {
+
+/// The mesh of one 8^3 leaf block: its cubes' triangles, and for each vertex the key of the
+/// grid edge it lies on (so blocks can be welded into one indexed mesh).
+struct TsdfBlockMesh {
+    std::vector<std::uint64_t> edge_keys;    ///< one per vertex (see EdgeKey in tsdf_mesh.cpp)
+    std::vector<Eigen::Vector3f> vertices;   ///< volume frame, metres
+    std::vector<Eigen::Vector3i> triangles;  ///< indices into `vertices`
+};
+
+struct TsdfVolume::Impl {
+    TsdfConfig config;
+    openvdb::FloatGrid::Ptr sdf;     ///< truncated distance, metres; background +truncation
+    openvdb::FloatGrid::Ptr weight;  ///< weight; background 0 (never observed)
+    std::unordered_set<openvdb::Coord> dirty_blocks;  ///< leaf origins touched since last mesh
+    std::unordered_map<openvdb::Coord, TsdfBlockMesh> mesh_cache;  ///< by leaf origin
+    std::size_t last_remeshed = 0;  ///< blocks re-meshed by the last ExtractMesh
+
+    /// Empty grids for `cfg` (calls openvdb::initialize() once per process).
+    explicit Impl(const TsdfConfig& cfg);
+    /// Marks every allocated leaf dirty (after deserialisation the cache is empty).
+    void MarkAllDirty();
+};
+
+/// Marching cubes over one leaf block of `impl` at `origin` (tsdf_mesh.cpp).
+TsdfBlockMesh MeshBlock(const TsdfVolume::Impl& impl, const openvdb::Coord& origin);
+
+}  // namespace certislam::slam

@@ -1,0 +1,204 @@
+// Loop verification: GICP on real pairs against reference poses, Scan Context yaw seeding,
+// the degeneracy check on a synthetic corridor, and rejection of different places.
+#include "slam/frontend/registration.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "slam/io/cloud_io.h"
+#include "slam/frontend/downsample.h"
+#include "slam/frontend/scan_context.h"
+
+namespace certislam::slam {
+namespace {
+
+const std::string kLidar = std::string(CERTISLAM_DATA_DIR) + "/lidar/";
+constexpr double kHdlMaxTranslationM = 0.05;  // fast_gicp's own test thresholds (issue 4)
+constexpr double kHdlMaxRotationDeg = 1.0;
+constexpr double kKittiMaxTranslationM = 0.10;
+constexpr double kKittiMaxRotationDeg = 0.5;
+
+PointCloud Load(const std::string& relative) {
+    CloudReadResult r = ReadCloud(kLidar + relative);
+    EXPECT_TRUE(r.ok()) << r.error;
+    return std::move(r.cloud);
+}
+
+// Reads KITTI-style 3x4 poses, one per line: skips '#' comments, a leading label ("Tr:") and a
+// leading frame index (13 numbers on a line).
+std::vector<Eigen::Isometry3d> ReadKittiPoses(const std::string& path) {
+    std::ifstream in(path);
+    EXPECT_TRUE(in.good()) << path;
+    std::vector<Eigen::Isometry3d> poses;
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.empty() || line[0] == '#') continue;
+        std::istringstream fields(line);
+        std::vector<double> values;
+        std::string token;
+        while (fields >> token) {
+            if (token.back() == ':') continue;
+            values.push_back(std::stod(token));
+        }
+        if (values.size() != 12 && values.size() != 13) continue;
+        const std::size_t first = values.size() - 12;
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        for (int k = 0; k < 12; ++k) T.matrix()(k / 4, k % 4) = values[first + k];
+        poses.push_back(T);
+    }
+    return poses;
+}
+
+Eigen::Isometry3d ReadMatrix4(const std::string& path) {
+    std::ifstream in(path);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    for (int k = 0; k < 16; ++k) in >> T.matrix()(k / 4, k % 4);
+    return T;
+}
+
+double TranslationError(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+    return (a.inverse() * b).translation().norm();
+}
+
+double RotationErrorDeg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+    return Eigen::AngleAxisd((a.inverse() * b).rotation()).angle() * 180.0 / std::numbers::pi;
+}
+
+PointCloud Transform(const PointCloud& cloud, const Eigen::Isometry3d& T) {
+    const Eigen::Isometry3f Tf = T.cast<float>();
+    PointCloud out;
+    for (const auto& p : cloud) out.push_back(Tf * p);
+    return out;
+}
+
+TEST(Registration, HdlPairWithinFiveCentimetresAndOneDegree) {
+    const PointCloud target = Load("hdl_pair_fast_gicp/251370668.pcd");
+    const PointCloud source = Load("hdl_pair_fast_gicp/251371071.pcd");
+    const Eigen::Isometry3d reference = ReadMatrix4(kLidar + "hdl_pair_fast_gicp/relative.txt");
+    RegistrationConfig config;
+    config.voxel_m = 0.2;
+    const RegistrationResult r =
+        RegisterScans(source, target, Eigen::Isometry3d::Identity(), config);
+    EXPECT_TRUE(r.accepted()) << static_cast<int>(r.status);
+    EXPECT_TRUE(r.converged);
+    EXPECT_LT(TranslationError(r.T_target_source, reference), kHdlMaxTranslationM);
+    EXPECT_LT(RotationErrorDeg(r.T_target_source, reference), kHdlMaxRotationDeg);
+    EXPECT_GT(r.fitness, 0.8);
+    EXPECT_GT(r.kappa, 0.0);
+    EXPECT_GT(r.tau, 0.0);
+    EXPECT_TRUE(r.information.isApprox(r.information.transpose(), 1e-9));
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Information6>(r.information).eigenvalues().minCoeff(),
+              0.0);
+    // The floor bounds the information: sigma_t >= 5 cm means tau <= 1 / 0.05^2.
+    EXPECT_LE(r.tau, 1.0 / (config.min_translation_sigma_m * config.min_translation_sigma_m));
+}
+
+// KITTI 00 frames 94 -> 95 (0.47 m apart): GT relative pose from the KITTI poses and the
+// velodyne-to-camera calibration, T_world_velo = T_world_cam0 * Tr.
+TEST(Registration, KittiConsecutiveScansMatchGroundTruth) {
+    const auto poses = ReadKittiPoses(kLidar + "kitti00_scancontext_samples/poses_cam0_subset.txt");
+    ASSERT_EQ(poses.size(), 4u);
+    const Eigen::Isometry3d Tr =
+        ReadKittiPoses(kLidar + "kitti00_scancontext_samples/calib_Tr_velo_to_cam0_seq00.txt")
+            .at(0);
+    const Eigen::Isometry3d truth = (poses[0] * Tr).inverse() * (poses[1] * Tr);  // T_94_95
+    const PointCloud target = Load("kitti00_scancontext_samples/velodyne/000094.bin");
+    const PointCloud source = Load("kitti00_scancontext_samples/velodyne/000095.bin");
+    const ScanContextConfig sc;
+    const ScanContextMatch m =
+        ScanContextDistance(MakeScanContext(source, sc), MakeScanContext(target, sc));
+    const RegistrationResult r =
+        RegisterScans(source, target, YawGuess(m.yaw_rad), RegistrationConfig{});
+    EXPECT_TRUE(r.accepted()) << static_cast<int>(r.status);
+    EXPECT_LT(TranslationError(r.T_target_source, truth), kKittiMaxTranslationM);
+    EXPECT_LT(RotationErrorDeg(r.T_target_source, truth), kKittiMaxRotationDeg);
+}
+
+// A KAIST03 pair 3 keyframes (~3.5 m) apart with the source spun by 150 degrees: only the
+// Scan Context yaw makes the seed good enough.
+TEST(Registration, ScanContextYawSeedRecoversLargeRotation) {
+    const auto poses = ReadKittiPoses(kLidar + "mulran_kaist03_keyframes/optimized_poses.txt");
+    const Eigen::Isometry3d spin = YawGuess(150.0 * std::numbers::pi / 180.0);
+    const Eigen::Isometry3d truth = poses[0].inverse() * poses[3] * spin.inverse();
+    const PointCloud target = Load("mulran_kaist03_keyframes/Scans/000000.pcd");
+    const PointCloud source = Transform(Load("mulran_kaist03_keyframes/Scans/000003.pcd"), spin);
+    const ScanContextConfig sc;
+    const ScanContextMatch m =
+        ScanContextDistance(MakeScanContext(source, sc), MakeScanContext(target, sc));
+    const RegistrationResult r =
+        RegisterScans(source, target, YawGuess(m.yaw_rad), RegistrationConfig{});
+    EXPECT_TRUE(r.accepted()) << static_cast<int>(r.status);
+    EXPECT_LT(TranslationError(r.T_target_source, truth), kKittiMaxTranslationM);
+    EXPECT_LT(RotationErrorDeg(r.T_target_source, truth), 1.0);
+}
+
+TEST(Registration, DifferentPlacesAreNotAccepted) {
+    const PointCloud target = Load("kitti00_scancontext_samples/velodyne/000094.bin");
+    const PointCloud source = Load("kitti00_scancontext_samples/velodyne/000198.bin");
+    const RegistrationResult r =
+        RegisterScans(source, target, Eigen::Isometry3d::Identity(), RegistrationConfig{});
+    EXPECT_FALSE(r.accepted());
+}
+
+// Points on planes: a floor, and walls at |y| = 2 along x (a corridor); with `end_walls`, also
+// walls at |x| = 15 closing it into a room.
+PointCloud Corridor(bool end_walls, std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> along(-15.0f, 15.0f), across(-2.0f, 2.0f), up(0.0f, 3.0f);
+    std::normal_distribution<float> noise(0.0f, 0.01f);
+    PointCloud cloud;
+    for (int i = 0; i < 20000; ++i) {
+        cloud.emplace_back(along(rng), across(rng), noise(rng));                       // floor
+        cloud.emplace_back(along(rng), (i % 2 ? 2.0f : -2.0f) + noise(rng), up(rng));  // walls
+        if (end_walls && i % 4 == 0) {
+            cloud.emplace_back((i % 8 ? 15.0f : -15.0f) + noise(rng), across(rng), up(rng));
+        }
+    }
+    return cloud;
+}
+
+TEST(Registration, CorridorIsRejectedAsDegenerate) {
+    const Eigen::Isometry3d offset(Eigen::Translation3d(0.3, 0.0, 0.0));
+    const PointCloud target = Corridor(false, 1);
+    const PointCloud source = Transform(Corridor(false, 2), offset);
+    const RegistrationResult r =
+        RegisterScans(source, target, Eigen::Isometry3d::Identity(), RegistrationConfig{});
+    EXPECT_EQ(r.status, RegistrationResult::Status::kDegenerate) << r.translation_eigen_ratio;
+    EXPECT_LT(r.translation_eigen_ratio, 0.01);
+    // The unconstrained direction keeps little information: at most the floor's 1/sigma^2.
+    EXPECT_LT(r.information(0, 0), 1.01 / (0.05 * 0.05));
+}
+
+TEST(Registration, ClosedRoomIsAccepted) {
+    const Eigen::Isometry3d offset(Eigen::Translation3d(0.3, -0.1, 0.0));
+    const PointCloud target = Corridor(true, 1);
+    const PointCloud source = Transform(Corridor(true, 2), offset);
+    const RegistrationResult r =
+        RegisterScans(source, target, Eigen::Isometry3d::Identity(), RegistrationConfig{});
+    EXPECT_TRUE(r.accepted()) << static_cast<int>(r.status) << " " << r.translation_eigen_ratio;
+    EXPECT_LT(TranslationError(r.T_target_source, offset.inverse()), 0.03);
+}
+
+TEST(Registration, EmptyCloudIsTooFewPoints) {
+    const PointCloud target = Corridor(true, 1);
+    const RegistrationResult r =
+        RegisterScans({}, target, Eigen::Isometry3d::Identity(), RegistrationConfig{});
+    EXPECT_EQ(r.status, RegistrationResult::Status::kTooFewPoints);
+}
+
+TEST(Downsample, VoxelCountMatchesReadmeWithinFewPercent) {
+    const PointCloud scan = Load("mulran_kaist03_keyframes/Scans/000000.pcd");
+    const PointCloud down = VoxelDownsample(scan, 0.2);
+    EXPECT_NEAR(static_cast<double>(down.size()), 23837.0, 0.03 * 23837.0);  // README's count
+}
+
+}  // namespace
+}  // namespace certislam::slam

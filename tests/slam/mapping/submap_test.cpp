@@ -1,0 +1,188 @@
+// Tests of TSDF submaps: creation policy, rigid re-anchoring, equivalence of trajectories up to
+// per-submap corrections, fusion across robots, and the bytes a robot sends a peer.
+#include "slam/mapping/submap.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <stdexcept>
+
+#include "tests/slam/mapping/tsdf_test_scenes.h"
+
+namespace certislam::slam {
+namespace {
+
+using testing::Box;
+using testing::DistanceToBoxSurface;
+using testing::Pose;
+using testing::ScanBoxes;
+
+constexpr double kGround = -1.8;
+// Mesh vertices are float32: a vertex mapped by a transform differs from the vertex computed
+// in the other frame by float rounding only (coordinates up to ~20 m: ulp ~2e-6).
+constexpr double kFloatRounding = 1e-5;
+
+// A drive past the cube: 8 keyframes 1.5 m apart with a slow turn.
+std::vector<Eigen::Isometry3d> Drive() {
+    std::vector<Eigen::Isometry3d> poses;
+    for (int i = 0; i < 8; ++i) poses.push_back(Pose(-2.0 + 1.5 * i, -3.0 + 0.3 * i, 0, 0.1 * i));
+    return poses;
+}
+
+Eigen::Isometry3d RandomRigid(std::mt19937& rng, double max_angle, double max_shift) {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = (Eigen::AngleAxisd(max_angle * u(rng), Eigen::Vector3d::UnitZ()) *
+                  Eigen::AngleAxisd(max_angle * u(rng), Eigen::Vector3d::UnitX()))
+                     .toRotationMatrix();
+    T.translation() = max_shift * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    return T;
+}
+
+TsdfMap BuildMap(int robot, const TsdfMapConfig& cfg, const std::vector<Eigen::Isometry3d>& truth,
+                 const std::vector<Eigen::Isometry3d>& estimate) {
+    TsdfMap map(robot, cfg);
+    const std::vector<Box> scene = testing::GroundAndCube(kGround);
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+        const auto r = map.Insert(static_cast<int>(i), estimate[i], ScanBoxes(scene, truth[i]));
+        EXPECT_EQ(r.status, TsdfMapInsertResult::Status::kIntegrated);
+    }
+    return map;
+}
+
+double MaxVertexDistance(const TriangleMesh& a, const TriangleMesh& b) {
+    double worst = 0.0;
+    for (std::size_t i = 0; i < a.vertices.size(); ++i) {
+        worst = std::max(worst, double((a.vertices[i] - b.vertices[i]).norm()));
+    }
+    return worst;
+}
+
+TEST(TsdfMap, StartsSubmapsByDistanceAndByKeyframeCount) {
+    TsdfMapConfig by_distance;
+    by_distance.submap_distance_m = 4.0;
+    const auto poses = Drive();
+    const TsdfMap a = BuildMap(0, by_distance, poses, poses);
+    // Anchors at keyframes 0, 3, 6 (each 1.53 m apart: the 3rd step passes 4 m).
+    ASSERT_EQ(a.submaps().size(), 3u);
+    EXPECT_EQ(a.submaps()[1].anchor, (PoseId{0, 3}));
+    EXPECT_EQ(a.submaps()[2].keyframes, (std::vector<int>{6, 7}));
+
+    TsdfMapConfig by_count;
+    by_count.submap_max_keyframes = 3;
+    const TsdfMap b = BuildMap(1, by_count, poses, poses);
+    ASSERT_EQ(b.submaps().size(), 3u);
+    EXPECT_EQ(b.submaps()[2].id, (SubmapId{1, 2}));
+    EXPECT_EQ(b.submaps()[2].anchor, (PoseId{1, 6}));
+
+    TsdfMapConfig bad;
+    bad.submap_distance_m = 0.0;
+    EXPECT_THROW(TsdfMap(0, bad), std::invalid_argument);
+}
+
+TEST(TsdfMap, SubmapMovedByKnownTransformMovesItsMeshExactly) {
+    const auto poses = Drive();
+    TsdfMap map = BuildMap(0, TsdfMapConfig{}, poses, poses);
+    ASSERT_EQ(map.submaps().size(), 1u);
+    const TriangleMesh before = map.ExtractMesh();
+    ASSERT_GT(before.triangles.size(), 1000u);
+    std::mt19937 rng(11);
+    const Eigen::Isometry3d T_delta = RandomRigid(rng, 0.5, 10.0);
+    EXPECT_EQ(map.Reanchor([&](const PoseId& id) -> std::optional<Eigen::Isometry3d> {
+        return T_delta * poses[static_cast<std::size_t>(id.index)];
+    }),
+              1u);
+    const TriangleMesh after = map.ExtractMesh();
+    ASSERT_EQ(after.triangles, before.triangles);
+    ASSERT_EQ(after.vertices.size(), before.vertices.size());
+    EXPECT_LT(MaxVertexDistance(after, TransformMesh(before, T_delta)), kFloatRounding);
+}
+
+// Odometry with a different error per submap (a drift jump at each submap boundary): the
+// corrected poses re-anchor the submaps and the map equals the one built on the true poses.
+TEST(TsdfMap, SameScansUnderTwoTrajectoriesGiveTheSameMeshAfterReanchoring) {
+    TsdfMapConfig cfg;
+    cfg.submap_max_keyframes = 2;
+    const auto truth = Drive();
+    std::vector<Eigen::Isometry3d> drifted;
+    std::mt19937 rng(5);
+    Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+        if (i % 2 == 0) D = RandomRigid(rng, 0.2, 3.0);
+        drifted.push_back(D * truth[i]);
+    }
+    TsdfMap reference = BuildMap(0, cfg, truth, truth);
+    TsdfMap corrected = BuildMap(0, cfg, truth, drifted);
+    const TriangleMesh expected = reference.ExtractMesh();
+    ASSERT_EQ(corrected.ExtractMesh().vertices.size(), expected.vertices.size());
+    EXPECT_GT(MaxVertexDistance(corrected.ExtractMesh(), expected), 0.5);  // wrong before
+
+    EXPECT_EQ(corrected.Reanchor([&](const PoseId& id) -> std::optional<Eigen::Isometry3d> {
+        return truth[static_cast<std::size_t>(id.index)];
+    }),
+              4u);
+    const TriangleMesh mesh = corrected.ExtractMesh();
+    ASSERT_EQ(mesh.triangles, expected.triangles);
+    EXPECT_LT(MaxVertexDistance(mesh, expected), kFloatRounding);
+}
+
+TEST(TsdfMap, SubmapBytesRoundTripAndCorruptionIsRejected) {
+    const auto poses = Drive();
+    const TsdfMap map = BuildMap(3, TsdfMapConfig{}, poses, poses);
+    const Submap& s = map.submaps().front();
+    const std::string bytes = SerializeSubmap(s);
+    std::string error;
+    auto back = DeserializeSubmap(bytes, &error);
+    ASSERT_TRUE(back.has_value()) << error;
+    EXPECT_EQ(back->id, s.id);
+    EXPECT_EQ(back->anchor, s.anchor);
+    EXPECT_EQ(back->keyframes, s.keyframes);
+    EXPECT_TRUE(back->T_world_submap.isApprox(s.T_world_submap, 0.0));
+    EXPECT_TRUE(back->volume.SameVoxels(s.volume));
+    EXPECT_LT(bytes.size(), s.volume.Stats().memory_bytes / 2);  // compressed
+
+    EXPECT_FALSE(DeserializeSubmap(bytes.substr(0, 40), &error));
+    std::string bad_pose = bytes;
+    bad_pose[31] = char(bad_pose[31] ^ 0x40);  // exponent of the rotation's first entry
+    EXPECT_FALSE(DeserializeSubmap(bad_pose, &error));
+    EXPECT_NE(error.find("rigid"), std::string::npos) << error;
+    std::string bad_volume = bytes;
+    bad_volume.resize(bytes.size() - 10);
+    EXPECT_FALSE(DeserializeSubmap(bad_volume, &error));
+}
+
+// Two robots map the scene from opposite sides; robot 1's submap travels as bytes, and the
+// fused volume in one frame holds both sides of the cube within a voxel of the truth.
+TEST(TsdfMap, FusesTwoRobotsSubmapsIntoOneFrame) {
+    const std::vector<Box> scene = testing::GroundAndCube(kGround);
+    TsdfMap robot0(0), robot1(1);
+    robot0.Insert(0, Pose(0, -2, 0, 0.0), ScanBoxes(scene, Pose(0, -2, 0, 0.0)));
+    robot0.Insert(1, Pose(2, 5, 0, -1.0), ScanBoxes(scene, Pose(2, 5, 0, -1.0)));
+    robot1.Insert(0, Pose(9, -1, 0, 2.0), ScanBoxes(scene, Pose(9, -1, 0, 2.0)));
+    robot1.Insert(1, Pose(8, 4, 0, -2.5), ScanBoxes(scene, Pose(8, 4, 0, -2.5)));
+    std::string error;
+    auto received = DeserializeSubmap(SerializeSubmap(robot1.submaps().front()), &error);
+    ASSERT_TRUE(received.has_value()) << error;
+    robot0.AddSubmap(std::move(*received));
+    ASSERT_EQ(robot0.submaps().size(), 2u);
+
+    const TsdfConfig cfg;
+    TsdfVolume fused = robot0.Fuse(cfg);
+    const TriangleMesh mesh = fused.ExtractMesh();
+    int near_minus_x = 0, near_plus_x = 0;
+    double worst = 0.0;
+    for (const auto& p : mesh.vertices) {
+        const Eigen::Vector3d q = p.cast<double>();
+        worst =
+            std::max(worst, std::min(std::abs(q.z() - kGround), DistanceToBoxSurface(scene[1], q)));
+        near_minus_x += std::abs(q.x() - 4.0) < 0.1 && q.z() > -1.0 ? 1 : 0;
+        near_plus_x += std::abs(q.x() - 6.0) < 0.1 && q.z() > -1.0 ? 1 : 0;
+    }
+    // Resampling to the nearest voxel adds up to half a voxel to the half-voxel surface bound.
+    EXPECT_LT(worst, cfg.voxel_size_m);
+    EXPECT_GT(near_minus_x, 20);  // seen by robot 0 only
+    EXPECT_GT(near_plus_x, 20);   // seen by robot 1 only
+}
+
+}  // namespace
+}  // namespace certislam::slam

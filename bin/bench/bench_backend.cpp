@@ -15,11 +15,11 @@
 
 #include "bin/command.h"
 #include "slam/backend/connection_laplacian.h"
-#include "slam/io/g2o_io.h"
-#include "slam/core/partition.h"
 #include "slam/backend/schwarz_preconditioner.h"
 #include "slam/backend/sparse_product.h"
 #include "slam/backend/stiefel.h"
+#include "slam/core/partition.h"
+#include "slam/io/g2o_io.h"
 
 namespace certislam::bin {
 namespace {

@@ -13,12 +13,12 @@
 
 #include "bin/bench/bench_frontend_bandwidth.h"
 #include "bin/command.h"
-#include "slam/io/cloud_io.h"
 #include "slam/frontend/descriptor_database.h"
 #include "slam/frontend/downsample.h"
 #include "slam/frontend/registration.h"
 #include "slam/frontend/scan_context.h"
 #include "slam/frontend/scan_context_compression.h"
+#include "slam/io/cloud_io.h"
 
 namespace certislam::bin {
 namespace {

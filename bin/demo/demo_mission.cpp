@@ -14,11 +14,11 @@
 #include "bin/demo/demo_plot.h"
 #include "bin/demo/demo_report.h"
 #include "certify/pipeline/mission.h"
-#include "slam/io/g2o_io.h"
-#include "slam/sim/simulator.h"
-#include "slam/io/trajectory_io.h"
 #include "slam/eval/trajectory_metrics.h"
+#include "slam/io/g2o_io.h"
+#include "slam/io/trajectory_io.h"
 #include "slam/mapping/tsdf.h"
+#include "slam/sim/simulator.h"
 
 namespace certislam::bin {
 namespace {

@@ -10,11 +10,11 @@
 #include <stdexcept>
 #include <string>
 
-#include "slam/core/check.h"
 #include "slam/backend/connection_laplacian.h"
 #include "slam/backend/rbcd_block.h"
 #include "slam/backend/sparse_product.h"
 #include "slam/backend/stiefel.h"
+#include "slam/core/check.h"
 
 namespace certislam::slam {
 namespace {

@@ -8,10 +8,10 @@
 #include <cmath>
 #include <limits>
 
-#include "slam/core/check.h"
 #include "slam/backend/schwarz_preconditioner.h"
 #include "slam/backend/sparse_product.h"
 #include "slam/backend/stiefel.h"
+#include "slam/core/check.h"
 
 namespace certislam::slam {
 namespace {

@@ -7,13 +7,13 @@
 #include <memory>
 #include <vector>
 
-#include "slam/core/check.h"
 #include "slam/backend/connection_laplacian.h"
 #include "slam/backend/rbcd.h"
 #include "slam/backend/rbcd_block.h"
 #include "slam/backend/schwarz_preconditioner.h"
 #include "slam/backend/sparse_product.h"
 #include "slam/backend/stiefel.h"
+#include "slam/core/check.h"
 
 namespace certislam::slam {
 namespace {

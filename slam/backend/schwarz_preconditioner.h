@@ -7,8 +7,8 @@
 #include <memory>
 #include <vector>
 
-#include "slam/core/partition.h"
 #include "slam/backend/rbcd_block.h"
+#include "slam/core/partition.h"
 
 namespace certislam::slam {
 

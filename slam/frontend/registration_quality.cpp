@@ -8,9 +8,9 @@
 #include <unordered_map>
 
 #include "slam/core/check.h"
+#include "slam/core/se3.h"
 #include "slam/frontend/point_kdtree.h"
 #include "slam/frontend/registration.h"
-#include "slam/core/se3.h"
 
 namespace certislam::slam {
 namespace {

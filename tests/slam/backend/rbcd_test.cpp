@@ -10,9 +10,9 @@
 
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
-#include "slam/io/g2o_io.h"
-#include "slam/core/partition.h"
 #include "slam/backend/rounding.h"
+#include "slam/core/partition.h"
+#include "slam/io/g2o_io.h"
 
 namespace certislam::slam {
 namespace {

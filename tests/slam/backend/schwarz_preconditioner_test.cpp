@@ -16,8 +16,8 @@
 #include <string>
 
 #include "slam/backend/connection_laplacian.h"
-#include "slam/io/g2o_io.h"
 #include "slam/core/partition.h"
+#include "slam/io/g2o_io.h"
 
 namespace certislam::slam {
 namespace {

@@ -1,6 +1,6 @@
 // `certislam bench backend [FILE]`: the back end's per-iteration kernels on one g2o file (default
-// parking-garage): V Q, the tangent projection and the finish's preconditioner, each beside the
-// code it replaced or a reference, as milliseconds per call (median of batches).
+// parking-garage): V Q, the tangent projection and the finish's preconditioner, each beside
+// Eigen's equivalent or a reference, as milliseconds per call (median of batches).
 #include <CLI/CLI.hpp>
 #include <Eigen/CholmodSupport>
 #include <algorithm>
@@ -15,11 +15,11 @@
 
 #include "bin/command.h"
 #include "slam/backend/connection_laplacian.h"
-#include "slam/io/g2o_io.h"
-#include "slam/core/partition.h"
 #include "slam/backend/schwarz_preconditioner.h"
 #include "slam/backend/sparse_product.h"
 #include "slam/backend/stiefel.h"
+#include "slam/io/g2o_io.h"
+#include "slam/core/partition.h"
 
 namespace certislam::bin {
 namespace {
@@ -39,8 +39,8 @@ double MedianMs(const std::function<void()>& body, int batches, int calls) {
     return ms[batches / 2];
 }
 
-// The tangent projection as it was written before the per-pose loops (9e4c7a2: Eigen's products
-// on r x d blocks, d x d results without heap allocation), kept here as the baseline.
+// The tangent projection with Eigen's products on r x d blocks (d x d results without heap
+// allocation), the baseline the per-pose loops of slam/backend/stiefel.cpp are compared with.
 Eigen::MatrixXd ProjectWithEigenBlocks(const Eigen::MatrixXd& X, const Eigen::MatrixXd& V, int d) {
     using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3>;
     Eigen::MatrixXd out = V;

@@ -1,5 +1,5 @@
-// RegisterScans with PCL's GICP (the project's only PCL registration translation unit: one such
-// TU takes ~25 s to compile, so no PCL header leaves this file).
+// RegisterScans with PCL's GICP (the project's only PCL registration translation unit: PCL's
+// registration templates are slow to compile, so no PCL header leaves this file).
 #include "slam/frontend/registration.h"
 
 #include <pcl/point_cloud.h>

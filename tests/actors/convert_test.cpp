@@ -122,7 +122,7 @@ TEST(Convert, CompactScanContextIsSmallCloseAndRejectsForgedBytes) {
     std::string float_bytes;
     ASSERT_TRUE(ToProto(sc, {1, 5}).SerializeToString(&compact_bytes));
     ASSERT_TRUE(ToProto(sc, {1, 5}, DescriptorWire::kFloat32).SerializeToString(&float_bytes));
-    // A random synthetic cloud compresses least (real scans: 6-10x, tests/slam).
+    // A random synthetic cloud compresses least (real scans: tests/slam/frontend).
     EXPECT_LT(compact_bytes.size() * 2, float_bytes.size());
     v1::ScanContextDescriptor parsed;
     ASSERT_TRUE(parsed.ParseFromString(compact_bytes));

@@ -114,7 +114,8 @@ TEST(Convert, ScanContextRoundTripsAndRejectsWrongSizes) {
 
 TEST(Convert, CompactScanContextIsSmallCloseAndRejectsForgedBytes) {
     constexpr double kHalfStepM = 0.025 + 1e-6;  // 5 cm height steps
-    constexpr double kMaxDistanceChange = 0.01;  // slam/frontend/scan_context_compression's own bound
+    constexpr double kMaxDistanceChange =
+        0.01;  // slam/frontend/scan_context_compression's own bound
     const auto kf = MakeKeyframe(20000);
     const auto sc = slam::MakeScanContext(*kf.cloud, slam::ScanContextConfig{});
     std::string compact_bytes;
@@ -196,9 +197,9 @@ TEST(Convert, PublicPosesRoundTripAndRejectCountMismatch) {
 
 TEST(Convert, CertificateReportCarriesVerdictAndLambda) {
     certify::CertificateResult result;
-    result.status = certify::CertificateResult::Status::kNotCertified;
+    result.status = certify::CertificateResult::Status::kNotOptimal;
     result.lambda_min = -0.25;
-    result.cost = 3.0;
+    result.objective = 3.0;
     const auto report = ToProto(result, 5);
     EXPECT_EQ(report.verdict(), v1::CERTIFICATE_VERDICT_NOT_CERTIFIED);
     EXPECT_EQ(report.lambda_min(), -0.25);

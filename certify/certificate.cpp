@@ -22,6 +22,7 @@ using slam::BlockColumn;
 constexpr double kRoundingNoise = 1e-12;        ///< relative noise of a product X Q in doubles
 constexpr double kBoundRefinementFactor = 0.1;  ///< eta step of the lower-bound refinement
 constexpr double kLambdaMargin = 4.0;           ///< first refined eta in units of -lambda_min
+constexpr int kMaxRefinements = 12;             ///< eta 10^-12: S's rounding noise is near
 constexpr double kManifoldTolerance = 1e-8;     ///< ||Y_i^T Y_i - I||_F of a point on St(d, r)
 
 void Require(bool ok, const std::string& field, double value, const std::string& rule) {
@@ -109,6 +110,16 @@ void SetBound(double bound_eta, int d, int n, CertificateResult* result) {
     result->suboptimality_bound = std::max(result->objective - result->lower_bound, 0.0);
 }
 
+/// Rungs of the bound ladder: config.bound_refinements, or more (up to kMaxRefinements) when
+/// eta 10^-k d n must fall below max_relative_bound f(X) for a bound tight enough to certify
+/// (graphs whose ||Q|| is large against f, e.g. kitti's odometry weights).
+int Refinements(const CertificateConfig& config, int d, int n, const CertificateResult& result) {
+    if (config.bound_refinements == 0 || !(result.objective > 0.0)) return config.bound_refinements;
+    const double needed_eta = 0.5 * config.max_relative_bound * result.objective / (d * n);
+    const int needed = static_cast<int>(std::ceil(std::log10(result.eta / needed_eta)));
+    return std::clamp(needed, config.bound_refinements, kMaxRefinements);
+}
+
 /// The second-order part at a critical X: Cholesky verdict, eigenpair, bound or escape.
 /// Returns why it is inconclusive, or empty (then has_bound: PSD; else: not optimal).
 std::string SecondOrder(const SparseMatrix& Q, const SparseMatrix& S, const Eigen::MatrixXd& X,
@@ -136,8 +147,9 @@ std::string SecondOrder(const SparseMatrix& Q, const SparseMatrix& S, const Eige
     result->lambda_min_relative = result->q_norm > 0.0 ? pair.lambda / result->q_norm : 0.0;
     result->eigen_residual = pair.residual;
     result->eigenvector = pair.vector;
-    const BoundSearch search = VerdictAndBound(result->eta, pair.lambda, config.bound_refinements,
-                                               [&](double eta) { return psd.PsdAt(eta); });
+    const BoundSearch search =
+        VerdictAndBound(result->eta, pair.lambda, Refinements(config, d, n, *result),
+                        [&](double eta) { return psd.PsdAt(eta); });
     result->psd_at_eta = search.psd_at_eta;
     if (search.psd_at_eta) {
         SetBound(search.bound_eta, d, n, result);

@@ -66,7 +66,9 @@ TEST(SolveCommand, LmBaselineIsJudgedByTheCertificate) {
         << verdict;
     EXPECT_EQ(j["certified"].get<bool>(), verdict == "certified");
     EXPECT_EQ(j.contains("suboptimality_bound"), j.contains("lower_bound"));
-    if (verdict == "certified") EXPECT_TRUE(j.contains("suboptimality_bound"));
+    if (verdict == "certified") {
+        EXPECT_TRUE(j.contains("suboptimality_bound"));
+    }
     if (verdict == "not optimal" || verdict == "not critical") {
         EXPECT_FALSE(j.contains("suboptimality_bound"));
     }

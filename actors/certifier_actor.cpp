@@ -7,6 +7,7 @@
 
 #include "certify/saddle_escape.h"
 #include "slam/backend/connection_laplacian.h"
+#include "slam/core/loop_closure.h"
 #include "slam/core/pose_graph.h"
 
 namespace certislam::actors {
@@ -256,15 +257,9 @@ bool CertifierActor::Assemble(const std::map<int, Bundle>& bundles, slam::PoseGr
     };
     for (const auto& [robot, b] : bundles) {
         for (const auto& e : b.edges) {
-            slam::RelativePoseMeasurement m;
-            m.i = index(e.a);
-            m.j = index(e.b);
-            if (m.i < 0 || m.j < 0) return false;  // a newer bundle of the other robot is coming
-            m.R = e.T_a_b.linear();
-            m.t = e.T_a_b.translation();
-            m.kappa = e.kappa;
-            m.tau = e.tau;
-            graph->edges.push_back(m);
+            const int i = index(e.a), j = index(e.b);
+            if (i < 0 || j < 0) return false;  // a newer bundle of the other robot is coming
+            graph->edges.push_back(slam::MeasurementOf(e, i, j));
         }
     }
     return true;
@@ -281,7 +276,7 @@ void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::M
     report.set_iteration(graph.edges.size());  // which graph: its edge count
     report.set_path(path);
     Send(*out_, transport::Pack(report), true);
-    if (result.status == certify::CertificateResult::Status::kNotCertified &&
+    if (result.status == certify::CertificateResult::Status::kNotOptimal &&
         level_ < config_.max_staircase_steps) {
         Escape(Q, X, result.eigenvector, result.gradient_tolerance, bundles_);
     }

@@ -282,7 +282,7 @@ void CertifierActor::RoundFinished() {
     // The escape stays centralised: the anchor computes the eigenvector on the round's graph.
     const auto Q = slam::ConnectionLaplacian(graph);
     if (!central) central = certify::Certify(Q, X, 3, config_.certificate);
-    if (central->status == certify::CertificateResult::Status::kNotCertified) {
+    if (central->status == certify::CertificateResult::Status::kNotOptimal) {
         Escape(Q, X, central->eigenvector, central->gradient_tolerance, round_bundles_);
     }
 }

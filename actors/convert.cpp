@@ -331,10 +331,10 @@ v1::CertificateVerdict VerdictOf(certify::CertificateResult::Status status) {
     switch (status) {
         case S::kCertified:
             return v1::CERTIFICATE_VERDICT_CERTIFIED;
-        case S::kNotCertified:
+        case S::kNotOptimal:
             return v1::CERTIFICATE_VERDICT_NOT_CERTIFIED;
         case S::kNotCritical:
-        case S::kEigensolverFailed:
+        case S::kInconclusive:
             return v1::CERTIFICATE_VERDICT_INCONCLUSIVE;
     }
     return v1::CERTIFICATE_VERDICT_UNSPECIFIED;
@@ -347,7 +347,7 @@ v1::CertificateReport ToProto(const certify::CertificateResult& result, std::uin
     out.set_eps_tolerance(result.eta);
     out.set_suboptimality_bound(result.suboptimality_bound);
     out.set_duality_gap(result.duality_gap);
-    out.set_objective(result.cost);
+    out.set_objective(result.objective);
     out.set_rank_r(rank);
     return out;
 }

@@ -94,25 +94,8 @@ struct SolverState::Impl {
     }
     Eigen::MatrixXd OwnPose(int k) const { return X.middleCols(kBlock * k, kBlock); }
 
-    slam::RelativePoseMeasurement Edge(int i, int j, const Eigen::Isometry3d& T, double kappa,
-                                       double tau) const {
-        slam::RelativePoseMeasurement m;
-        m.i = i;
-        m.j = j;
-        m.R = T.linear();
-        m.t = T.translation();
-        m.kappa = kappa;
-        m.tau = tau;
-        return m;
-    }
-    double OdomKappa() const {
-        const double s = config.noise.odometry_sigma_r_rad;
-        return 1.0 / (2.0 * s * s);
-    }
-    double OdomTau() const {
-        const double s = config.noise.odometry_sigma_t_m;
-        return 1.0 / (s * s);
-    }
+    double OdomKappa() const { return slam::RotationWeight(config.noise.odometry_sigma_r_rad); }
+    double OdomTau() const { return slam::TranslationWeight(config.noise.odometry_sigma_t_m); }
 
     /// Lifted pose of a neighbour pose: last heard, else predicted through the loop.
     Eigen::MatrixXd NeighbourPose(const slam::PoseId& id) const {
@@ -167,13 +150,14 @@ struct SolverState::Impl {
             local[local_nbr[k]] = n() + static_cast<int>(k);
         }
         for (int k = 0; k + 1 < n(); ++k) {
-            auto e = Edge(k, k + 1, odom[k].inverse() * odom[k + 1], OdomKappa(), OdomTau());
+            auto e = slam::MeasurementOf(k, k + 1, odom[k].inverse() * odom[k + 1], OdomKappa(),
+                                         OdomTau());
             e.is_known_inlier = true;
             graph.edges.push_back(e);
         }
         for (const auto& l : loops) {
             if (Active(l)) {
-                graph.edges.push_back(Edge(local.at(l.a), local.at(l.b), l.T_a_b, l.kappa, l.tau));
+                graph.edges.push_back(slam::MeasurementOf(l, local.at(l.a), local.at(l.b)));
             }
         }
         dirty = false;

@@ -43,53 +43,73 @@ double CpuSeconds() {
     return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
 
-const char* Verdict(certify::PoseGraphSolverResult::Status s) {
-    switch (s) {
-        case certify::PoseGraphSolverResult::Status::kCertified:
-            return "certified";
-        case certify::PoseGraphSolverResult::Status::kNotCertified:
-            return "not certified";
-        case certify::PoseGraphSolverResult::Status::kNoVerdict:
-            break;
-    }
-    return "no verdict";
-}
-
 nlohmann::json ToJson(const SolveOptions& o, const slam::PoseGraph& graph, int robots,
                       const certify::PoseGraphSolverResult& r) {
     const auto& c = r.certificate;
-    return {{"file", o.file},
-            {"method", o.method},
-            {"cost", r.cost},
-            {"certified", r.status == certify::PoseGraphSolverResult::Status::kCertified},
-            {"verdict", Verdict(r.status)},
-            {"lambda_min", c.lambda_min},
-            {"lambda_min_relative", c.lambda_min_relative},
-            {"suboptimality_bound", r.suboptimality_bound},
-            {"lower_bound", c.lower_bound},
-            {"rank", r.rank},
-            {"iterations", r.iterations},
-            {"escapes", r.escapes},
-            {"seconds", r.seconds},
-            {"certify_seconds", c.seconds},
-            {"peak_rss_mb", PeakRssMb()},
-            {"poses", graph.n},
-            {"edges", static_cast<int>(graph.edges.size())},
-            {"edges_used", r.edges_used},
-            {"robots", robots},
-            {"robust", o.robust},
-            {"gradient_norm", c.gradient_norm}};
+    nlohmann::json j = {
+        {"file", o.file},
+        {"method", o.method},
+        {"objective", r.cost},
+        {"cost", r.cost},
+        {"certified", r.status == certify::PoseGraphSolverResult::Status::kCertified},
+        {"verdict", certify::VerdictName(r.status)},
+        {"gradient_norm", c.gradient_norm},
+        {"gradient_tolerance", c.gradient_tolerance},
+        {"rank", r.rank},
+        {"iterations", r.iterations},
+        {"escapes", r.escapes},
+        {"seconds", r.seconds},
+        {"certify_seconds", c.seconds},
+        {"peak_rss_mb", PeakRssMb()},
+        {"poses", graph.n},
+        {"edges", static_cast<int>(graph.edges.size())},
+        {"edges_used", r.edges_used},
+        {"robots", robots},
+        {"robust", o.robust}};
+    if (!r.reason.empty()) j["reason"] = r.reason;
+    if (o.method == "lm") {
+        j["local_search_cost"] = r.local_search_cost;
+        j["polish_iterations"] = r.polish_iterations;
+    }
+    // Only what was computed and proven: no eigenvalue at a non-critical point, no bound
+    // unless S + eta D was shown PSD.
+    if (r.status != certify::PoseGraphSolverResult::Status::kNotCritical) {
+        j["lambda_min"] = c.lambda_min;
+        j["lambda_min_relative"] = c.lambda_min_relative;
+    }
+    if (r.status == certify::PoseGraphSolverResult::Status::kNotOptimal) {
+        j["escape_descent"] = c.escape_descent;
+    }
+    if (r.has_bound) {
+        j["lower_bound"] = r.lower_bound;
+        j["suboptimality_bound"] = r.suboptimality_bound;
+        j["relative_suboptimality_bound"] = r.relative_suboptimality_bound;
+    }
+    return j;
 }
 
 void PrintText(const slam::PoseGraph& graph, int robots, const certify::PoseGraphSolverResult& r) {
     const auto& c = r.certificate;
     std::printf("poses %d   edges %zu (used %d)   robots %d   rank %d\n", graph.n,
                 graph.edges.size(), r.edges_used, robots, r.rank);
-    std::printf("cost %.10g   %s   lambda_min %.3e (relative %.3e)\n", r.cost, Verdict(r.status),
-                c.lambda_min, c.lambda_min_relative);
-    std::printf("suboptimality bound %.3e (relative %.3e)   lower bound %.10g\n",
-                r.suboptimality_bound, r.cost > 0.0 ? r.suboptimality_bound / r.cost : 0.0,
-                c.lower_bound);
+    std::printf("objective %.10g   verdict: %s%s%s\n", r.cost, certify::VerdictName(r.status),
+                r.reason.empty() ? "" : " (", r.reason.empty() ? "" : (r.reason + ")").c_str());
+    if (r.status == certify::PoseGraphSolverResult::Status::kNotCritical) {
+        std::printf("gradient norm %.3e > tolerance %.3e: no bound\n", c.gradient_norm,
+                    c.gradient_tolerance);
+    } else {
+        std::printf("lambda_min %.3e (relative %.3e)", c.lambda_min, c.lambda_min_relative);
+        if (r.status == certify::PoseGraphSolverResult::Status::kNotOptimal) {
+            std::printf("   escape descent %.3e", c.escape_descent);
+        }
+        std::printf("\n");
+    }
+    if (r.has_bound) {
+        std::printf("suboptimality bound %.3e (relative %.3e)   lower bound %.10g\n",
+                    r.suboptimality_bound, r.relative_suboptimality_bound, r.lower_bound);
+    } else {
+        std::printf("suboptimality bound: none proven\n");
+    }
     std::printf("iterations %d   escapes %d   %.3f s (certificate %.3f s)   peak RSS %.1f MB\n",
                 r.iterations, r.escapes, r.seconds, c.seconds, PeakRssMb());
 }

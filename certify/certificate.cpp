@@ -9,6 +9,7 @@
 #include <string>
 
 #include "certify/min_eigenpair.h"
+#include "certify/saddle_escape.h"
 #include "slam/core/check.h"
 #include "slam/core/pose_graph.h"
 
@@ -21,6 +22,8 @@ using slam::BlockColumn;
 constexpr double kRoundingNoise = 1e-12;        ///< relative noise of a product X Q in doubles
 constexpr double kBoundRefinementFactor = 0.1;  ///< eta step of the lower-bound refinement
 constexpr double kLambdaMargin = 4.0;           ///< first refined eta in units of -lambda_min
+constexpr int kMaxRefinements = 12;             ///< eta 10^-12: S's rounding noise is near
+constexpr double kManifoldTolerance = 1e-8;     ///< ||Y_i^T Y_i - I||_F of a point on St(d, r)
 
 void Require(bool ok, const std::string& field, double value, const std::string& rule) {
     if (!ok) {
@@ -83,6 +86,90 @@ class PsdTest {
     Eigen::CholmodDecomposition<SparseMatrix, Eigen::Lower> factor_;
 };
 
+/// Why X is not a point of the manifold (Y_i^T Y_i = I_d), or empty: off it, tr(Z D) != d n and
+/// neither the bound nor the gap identity holds.
+std::string OffManifold(const Eigen::MatrixXd& X, int d) {
+    const int n = static_cast<int>(X.cols()) / (d + 1);
+    for (int i = 0; i < n; ++i) {
+        const Eigen::MatrixXd Y = X.middleCols(slam::BlockColumn(i, d), d);
+        const double err = (Y.transpose() * Y - Eigen::MatrixXd::Identity(d, d)).norm();
+        if (!(err <= kManifoldTolerance)) {
+            return "pose " + std::to_string(i) +
+                   " is off the Stiefel manifold (||Y^T Y - I|| = " + std::to_string(err) + ")";
+        }
+    }
+    return {};
+}
+
+/// Sets the proven bound of S + bound_eta D PSD (MATH.md: f* >= tr(Lambda) - eta tr(Z D) =
+/// tr(Lambda) - eta d n for every feasible Z, and f* >= 0 since f is a sum of squares).
+void SetBound(double bound_eta, int d, int n, CertificateResult* result) {
+    result->has_bound = true;
+    result->bound_eta = bound_eta;
+    result->lower_bound = std::max(result->dual_value - bound_eta * d * n, 0.0);
+    result->suboptimality_bound = std::max(result->objective - result->lower_bound, 0.0);
+}
+
+/// Rungs of the bound ladder: config.bound_refinements, or more (up to kMaxRefinements) when
+/// eta 10^-k d n must fall below max_relative_bound f(X) for a bound tight enough to certify
+/// (graphs whose ||Q|| is large against f, e.g. kitti's odometry weights).
+int Refinements(const CertificateConfig& config, int d, int n, const CertificateResult& result) {
+    if (config.bound_refinements == 0 || !(result.objective > 0.0)) return config.bound_refinements;
+    const double needed_eta = 0.5 * config.max_relative_bound * result.objective / (d * n);
+    const int needed = static_cast<int>(std::ceil(std::log10(result.eta / needed_eta)));
+    return std::clamp(needed, config.bound_refinements, kMaxRefinements);
+}
+
+/// The second-order part at a critical X: Cholesky verdict, eigenpair, bound or escape.
+/// Returns why it is inconclusive, or empty (then has_bound: PSD; else: not optimal).
+std::string SecondOrder(const SparseMatrix& Q, const SparseMatrix& S, const Eigen::MatrixXd& X,
+                        int d, const CertificateConfig& config, CertificateResult* result) {
+    const int n = static_cast<int>(X.cols()) / (d + 1);
+    PsdTest psd(S, d);
+    MinEigenpairConfig eig;
+    eig.initial_shift = result->eta;
+    eig.tolerance = config.eigen_tolerance;
+    eig.max_iterations = config.eigen_max_iterations;
+    eig.subspace = config.eigen_subspace;
+    eig.seed = config.seed;
+    const MinEigenpairResult pair = SmallestEigenpair(S, eig);
+    result->eigen_iterations = pair.iterations;
+    result->shift_attempts = pair.shift_attempts;
+    if (pair.status != MinEigenpairResult::Status::kConverged) {
+        // A factorization at eta proves PSD by itself; a failed one, without an eigenvector,
+        // neither refutes optimality nor gives a direction.
+        result->psd_at_eta = psd.PsdAt(result->eta);
+        if (!result->psd_at_eta) return "S + eta D did not factorize and the eigensolver failed";
+        SetBound(result->eta, d, n, result);
+        return {};
+    }
+    result->lambda_min = pair.lambda;
+    result->lambda_min_relative = result->q_norm > 0.0 ? pair.lambda / result->q_norm : 0.0;
+    result->eigen_residual = pair.residual;
+    result->eigenvector = pair.vector;
+    const BoundSearch search =
+        VerdictAndBound(result->eta, pair.lambda, Refinements(config, d, n, *result),
+                        [&](double eta) { return psd.PsdAt(eta); });
+    result->psd_at_eta = search.psd_at_eta;
+    if (search.psd_at_eta) {
+        SetBound(search.bound_eta, d, n, result);
+        return {};
+    }
+    // S + eta D not PSD proves x^T S x < -eta x^T D x for some x (D >= 0: S is not PSD either);
+    // the eigenvector, v^T S v < 0, is the direction to escape along. lambda_min itself may lie
+    // in (-eta, 0) when v has translation entries, which D does not weigh.
+    if (!(pair.lambda < 0.0)) {
+        return "S + eta D did not factorize, yet lambda_min = " + std::to_string(pair.lambda) +
+               " >= 0";
+    }
+    const EscapeResult escape = EscapeSaddle(Q, X, d, pair.vector, result->gradient_tolerance);
+    if (escape.status == EscapeResult::Status::kEscaped) {
+        result->escape_descent = escape.cost_before - escape.cost_after;
+        result->escape_step = escape.step;
+    }
+    return {};
+}
+
 }  // namespace
 
 void CertificateConfig::Validate() const {
@@ -93,6 +180,22 @@ void CertificateConfig::Validate() const {
     Require(eigen_max_iterations > 0, "eigen_max_iterations", eigen_max_iterations, "> 0");
     Require(eigen_subspace >= 3, "eigen_subspace", eigen_subspace, ">= 3");
     Require(bound_refinements >= 0, "bound_refinements", bound_refinements, ">= 0");
+    Require(max_relative_bound > 0.0 && max_relative_bound < 1.0, "max_relative_bound",
+            max_relative_bound, "in (0, 1)");
+}
+
+const char* VerdictName(CertificateResult::Status status) {
+    switch (status) {
+        case CertificateResult::Status::kCertified:
+            return "certified";
+        case CertificateResult::Status::kNotOptimal:
+            return "not optimal";
+        case CertificateResult::Status::kNotCritical:
+            return "not critical";
+        case CertificateResult::Status::kInconclusive:
+            break;
+    }
+    return "inconclusive";
 }
 
 std::vector<Eigen::MatrixXd> LambdaBlocks(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d) {
@@ -185,64 +288,60 @@ double NormUpperBound(const SparseMatrix& Q) {
 
 CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d,
                           const CertificateConfig& config) {
+    return CertifyWithMultipliers(Q, X, d, LambdaBlocks(Q, X, d), config);
+}
+
+CertificateResult CertifyWithMultipliers(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d,
+                                         const std::vector<Eigen::MatrixXd>& lambda,
+                                         const CertificateConfig& config) {
     config.Validate();
     const auto start = std::chrono::steady_clock::now();
-    CertificateResult result;
+    CERTISLAM_CHECK(X.cols() == Q.rows() && X.cols() % (d + 1) == 0);
     const int n = static_cast<int>(X.cols()) / (d + 1);
-    const std::vector<Eigen::MatrixXd> lambda = LambdaBlocks(Q, X, d);
+    CERTISLAM_CHECK(static_cast<int>(lambda.size()) == n);
+    CertificateResult result;
     const SparseMatrix S = CertificateMatrix(Q, lambda, d);
-    result.cost = (X * Q).cwiseProduct(X).sum();
+    const Eigen::MatrixXd XS = X * S;
+    result.objective = (X * Q).cwiseProduct(X).sum();
     for (const auto& block : lambda) result.dual_value += block.trace();
-    result.duality_gap = result.cost - result.dual_value;
+    result.duality_gap = result.objective - result.dual_value;
     result.q_norm = NormUpperBound(Q);
     result.eta = config.eta_relative * result.q_norm;
-    const auto set_bound = [&](double eta) {
-        result.bound_eta = eta;
-        result.lower_bound = result.dual_value - eta * d * n;
-        result.suboptimality_bound = result.cost - result.lower_bound;
-        result.relative_suboptimality_bound =
-            result.cost > 0.0 ? result.suboptimality_bound / result.cost : 0.0;
-    };
-    set_bound(result.eta);
-    // Riemannian gradient = 2 X S: on rotation columns 2((XQ)_i - Y_i sym(Y_i^T (XQ)_i)).
-    result.gradient_norm = 2.0 * (X * S).norm();
+    // Riemannian gradient = 2 X S when Lambda = Lambda(X); else the Lagrangian's gradient.
+    result.gradient_norm = 2.0 * XS.norm();
     // The second term is the rounding noise of X Q (it matters only where f(X) = 0).
+    const double noise = kRoundingNoise * result.q_norm * X.norm();
     result.gradient_tolerance = config.gradient_tolerance_relative * 2.0 *
-                                    std::sqrt(result.q_norm * std::max(result.cost, 0.0)) +
-                                kRoundingNoise * result.q_norm * X.norm();
-    const auto finish = [&](CertificateResult::Status status) {
+                                    std::sqrt(result.q_norm * std::max(result.objective, 0.0)) +
+                                noise;
+    const auto finish = [&](CertificateResult::Status status, const std::string& reason = {}) {
         result.status = status;
+        result.reason = reason;
         result.seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         return result;
     };
+    const std::string off_manifold = OffManifold(X, d);
+    if (!off_manifold.empty())
+        return finish(CertificateResult::Status::kInconclusive, off_manifold);
     if (result.gradient_norm > result.gradient_tolerance) {
         return finish(CertificateResult::Status::kNotCritical);
     }
-    PsdTest psd(S, d);
-    MinEigenpairConfig eig;
-    eig.initial_shift = result.eta;
-    eig.tolerance = config.eigen_tolerance;
-    eig.max_iterations = config.eigen_max_iterations;
-    eig.subspace = config.eigen_subspace;
-    eig.seed = config.seed;
-    const MinEigenpairResult pair = SmallestEigenpair(S, eig);
-    result.eigen_iterations = pair.iterations;
-    result.shift_attempts = pair.shift_attempts;
-    if (pair.status != MinEigenpairResult::Status::kConverged) {
-        result.psd_at_eta = psd.PsdAt(result.eta);  // the verdict stands without an eigenpair
-        return finish(CertificateResult::Status::kEigensolverFailed);
+    const std::string why = SecondOrder(Q, S, X, d, config, &result);
+    if (result.has_bound && why.empty()) {
+        // Relative to f(X) floored at its own rounding noise (f* = 0 graphs).
+        const double scale = std::max(result.objective, noise * X.norm());
+        result.relative_suboptimality_bound = result.suboptimality_bound / scale;
+        if (result.relative_suboptimality_bound > config.max_relative_bound) {
+            return finish(CertificateResult::Status::kInconclusive,
+                          "S + eta D is PSD but the proven relative suboptimality bound " +
+                              std::to_string(result.relative_suboptimality_bound) + " exceeds " +
+                              std::to_string(config.max_relative_bound));
+        }
+        return finish(CertificateResult::Status::kCertified);
     }
-    const BoundSearch search = VerdictAndBound(result.eta, pair.lambda, config.bound_refinements,
-                                               [&](double eta) { return psd.PsdAt(eta); });
-    result.psd_at_eta = search.psd_at_eta;
-    if (search.psd_at_eta) set_bound(search.bound_eta);
-    result.lambda_min = pair.lambda;
-    result.lambda_min_relative = result.q_norm > 0.0 ? pair.lambda / result.q_norm : 0.0;
-    result.eigen_residual = pair.residual;
-    result.eigenvector = pair.vector;
-    return finish(result.psd_at_eta ? CertificateResult::Status::kCertified
-                                    : CertificateResult::Status::kNotCertified);
+    if (why.empty()) return finish(CertificateResult::Status::kNotOptimal);
+    return finish(CertificateResult::Status::kInconclusive, why);
 }
 
 }  // namespace certislam::certify

@@ -6,6 +6,7 @@
 #include <Eigen/SparseCore>
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 namespace certislam::certify {
@@ -13,12 +14,12 @@ namespace certislam::certify {
 /// Settings of the certifier; every tolerance is relative to the problem's own scale.
 struct CertificateConfig {
     /// eta = eta_relative * ||Q||, ||Q|| bounded above by its largest absolute row sum.
-    /// Certified means S + eta D is PSD (D = identity on rotation entries, zero on
-    /// translations), hence f* >= tr(Lambda) - eta * d * n exactly (the rotation diagonal
-    /// blocks of any feasible Z are I_d). 1e-7 sits well above the rounding noise of S
-    /// (about 1e-15 ||Q||) and of a point stopped at gradient_tolerance_relative, and well
-    /// below the negative curvature of real saddles (MATH.md; Shonan's false certificates came
-    /// from a loose tolerance, not from eta).
+    /// S + eta D PSD (D = identity on rotation entries, zero on translations) proves
+    /// f* >= tr(Lambda) - eta * d * n exactly (the rotation diagonal blocks of any feasible Z
+    /// are I_d); "certified" also needs that bound tight (max_relative_bound). 1e-7 sits well above
+    /// the rounding noise of S (about 1e-15 ||Q||) and of a point stopped at
+    /// gradient_tolerance_relative, and well below the negative curvature of real saddles (MATH.md;
+    /// Shonan's false certificates came from a loose tolerance, not from eta).
     double eta_relative = 1e-7;
     /// First-order tolerance: certify only if ||grad f||_F <= this * 2 sqrt(||Q|| f(X)). The
     /// scale is an upper bound of ||grad f|| itself (||XQ||_F^2 <= ||Q|| f), so the test is
@@ -37,41 +38,59 @@ struct CertificateConfig {
     /// which S + eta D still factorizes (VerdictAndBound below: the nearest rung first, then
     /// bisection on k). >= 0; 0: the bound stays at the verdict's eta.
     int bound_refinements = 6;
+    /// "certified" requires a proven relative suboptimality bound (f(X) - lower_bound) / f(X)
+    /// at most this, in (0, 1): S + eta D PSD alone only says X is within eta d n of f*.
+    double max_relative_bound = 1e-6;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
 };
 
-/// Everything the certificate says about X; every quantity SE-Sync names is here.
+/// Everything the certificate says about X; every quantity SE-Sync names is here. The bound
+/// fields are zero unless has_bound: a lower bound exists only once S + eta D was shown PSD.
 struct CertificateResult {
+    /// The verdict; VerdictName gives its one spelling in every report.
     enum class Status {
-        kCertified,          ///< critical and S + eta D PSD: X is (numerically) globally optimal
-        kNotCertified,       ///< critical, but S has a negative eigenvalue below -eta
-        kNotCritical,        ///< gradient above tolerance: no verdict (it would mean nothing)
-        kEigensolverFailed,  ///< critical, verdict made, but the eigenpair did not converge
+        kCertified,  ///< critical, S + eta D PSD, relative bound <= max_relative_bound
+        /// critical, S + eta D not PSD (x^T S x < -eta x^T D x for some x; lambda_min < -eta
+        /// unless its eigenvector has translation entries), lambda_min < 0: a saddle; its
+        /// eigenvector escapes (escape_descent)
+        kNotOptimal,
+        kNotCritical,   ///< gradient above its tolerance: no bound, no eigenvalue (meaningless)
+        kInconclusive,  ///< critical but neither proven optimal nor refuted: `reason` says why
     };
-    Status status = Status::kEigensolverFailed;
+    Status status = Status::kInconclusive;
+    std::string reason;      ///< kInconclusive: why (empty otherwise)
+    bool has_bound = false;  ///< lower_bound and the suboptimality bounds below are proven
     /// S + eta D is PSD: a sparse Cholesky of S + e D succeeded for some e <= eta
     bool psd_at_eta = false;
-    double cost = 0.0;                 ///< f(X) = tr(X Q X^T), SE-Sync objective (no 1/2)
+    double objective = 0.0;            ///< f(X) = tr(X Q X^T), SE-Sync objective (no 1/2)
     double dual_value = 0.0;           ///< tr(Lambda)
-    double duality_gap = 0.0;          ///< f(X) - tr(Lambda) (= <grad, X>/2)
+    double duality_gap = 0.0;          ///< f(X) - tr(Lambda) (= tr(X S X^T))
     double eta = 0.0;                  ///< absolute eta used
     double q_norm = 0.0;               ///< the upper bound of ||Q||_2 eta is relative to
     double bound_eta = 0.0;            ///< smallest eta found with S + eta D PSD (<= eta)
-    double lower_bound = 0.0;          ///< tr(Lambda) - bound_eta d n <= f*; valid if psd_at_eta
-    double suboptimality_bound = 0.0;  ///< f(X) - lower_bound; valid if psd_at_eta
-    double relative_suboptimality_bound = 0.0;  ///< suboptimality_bound / f(X)
+    double lower_bound = 0.0;          ///< max(tr(Lambda) - bound_eta d n, 0) <= f*
+    double suboptimality_bound = 0.0;  ///< f(X) - lower_bound >= f(X) - f*
+    /// suboptimality_bound / f(X) (f(X) floored at its rounding noise, so f* = 0 gives 0)
+    double relative_suboptimality_bound = 0.0;
     double lambda_min = 0.0;           ///< Rayleigh quotient v^T S v of the computed eigenvector
     double lambda_min_relative = 0.0;  ///< lambda_min / ||Q||
     double eigen_residual = 0.0;       ///< ||S v - lambda_min v||
     Eigen::VectorXd eigenvector;       ///< unit v, length (d+1)n, layout of X's columns
-    double gradient_norm = 0.0;        ///< ||grad f(X)||_F (Riemannian, = 2 ||X S||_F)
-    double gradient_tolerance = 0.0;   ///< the absolute first-order tolerance applied
-    int eigen_iterations = 0;          ///< Lanczos restarts used
-    int shift_attempts = 0;            ///< Cholesky factorizations spent finding the shift
-    double seconds = 0.0;              ///< wall time of Certify
+    /// kNotOptimal: f(X) - f(X_+) > 0 at the escape point X_+ of rank r + 1 along v
+    /// (EscapeSaddle), and its step; 0 if no step of the line search decreased f.
+    double escape_descent = 0.0;
+    double escape_step = 0.0;
+    double gradient_norm = 0.0;       ///< ||X S||_F * 2 (the Riemannian gradient if Lambda(X))
+    double gradient_tolerance = 0.0;  ///< the absolute first-order tolerance applied
+    int eigen_iterations = 0;         ///< Lanczos restarts used
+    int shift_attempts = 0;           ///< Cholesky factorizations spent finding the shift
+    double seconds = 0.0;             ///< wall time of Certify
 };
+
+/// "certified", "not optimal", "not critical" or "inconclusive".
+const char* VerdictName(CertificateResult::Status status);
 
 /// Lambda_i = sym((X Q)[:, rotation columns of i]^T Y_i), one d x d block per pose.
 std::vector<Eigen::MatrixXd> LambdaBlocks(const Eigen::SparseMatrix<double>& Q,
@@ -108,8 +127,17 @@ struct BoundSearch {
 BoundSearch VerdictAndBound(double eta, double lambda_min, int bound_refinements,
                             const std::function<bool(double)>& psd_at);
 
-/// Certifies X (r x (d+1)n, blocks [Y_i p_i], Y_i on the Stiefel manifold) for f = tr(X Q X^T).
+/// Certifies X (r x (d+1)n, blocks [Y_i p_i], Y_i on the Stiefel manifold) for f = tr(X Q X^T),
+/// with Lambda recomputed from X (LambdaBlocks): never a solver's multipliers (MATH.md).
 CertificateResult Certify(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X, int d,
                           const CertificateConfig& config = {});
+
+/// The same verdict for given multipliers (one symmetric d x d block per pose), e.g. blocks
+/// assembled from robots' messages: the first-order test is on the Lagrangian gradient 2 X S,
+/// so zero or stale multipliers come out "not critical", and a bound needs S + eta D PSD.
+CertificateResult CertifyWithMultipliers(const Eigen::SparseMatrix<double>& Q,
+                                         const Eigen::MatrixXd& X, int d,
+                                         const std::vector<Eigen::MatrixXd>& lambda,
+                                         const CertificateConfig& config = {});
 
 }  // namespace certislam::certify

@@ -2,8 +2,10 @@
 // SE-Sync rounding, and the certificate's bound for the rounded poses.
 #include "certify/pose_graph_solver.h"
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
+#include <string>
 
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
@@ -20,23 +22,27 @@ double Since(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-Result::Status FromCertificate(CertificateResult::Status s) {
-    switch (s) {
-        case CertificateResult::Status::kCertified:
-            return Result::Status::kCertified;
-        case CertificateResult::Status::kNotCertified:
-            return Result::Status::kNotCertified;
-        default:
-            return Result::Status::kNoVerdict;
-    }
-}
-
 // The certificate's lower bound applies to any estimate of the same graph: the bound of the
-// rounded poses is their cost minus it.
-void SetCertificate(const CertificateResult& certificate, Result* result) {
+// rounded poses is their cost minus it, and "certified" needs that bound within the limit too.
+void SetCertificate(const CertificateResult& certificate, double max_relative_bound,
+                    Result* result) {
     result->certificate = certificate;
-    result->status = FromCertificate(certificate.status);
-    result->suboptimality_bound = result->cost - certificate.lower_bound;
+    result->status = certificate.status;
+    result->reason = certificate.reason;
+    result->has_bound = certificate.has_bound;
+    if (!certificate.has_bound) return;
+    result->lower_bound = certificate.lower_bound;
+    result->suboptimality_bound = std::max(result->cost - certificate.lower_bound, 0.0);
+    result->relative_suboptimality_bound = result->cost > 0.0
+                                               ? result->suboptimality_bound / result->cost
+                                               : certificate.relative_suboptimality_bound;
+    if (result->status == Result::Status::kCertified &&
+        result->relative_suboptimality_bound > max_relative_bound) {
+        result->status = Result::Status::kInconclusive;
+        result->reason = "the rounded poses' relative suboptimality bound " +
+                         std::to_string(result->relative_suboptimality_bound) + " exceeds " +
+                         std::to_string(max_relative_bound);
+    }
 }
 
 slam::Partition MakePartition(const slam::PoseGraph& graph, int robots) {
@@ -48,14 +54,19 @@ void SolveWithLm(const slam::PoseGraph& graph, const PoseGraphSolverConfig& conf
     const slam::PoseMatrix initial = slam::OdometryInitialization(graph);
     const slam::LmResult lm = slam::SolveLm(graph, initial, config.lm);
     if (progress) progress("lm", graph.d, lm.cost, 0.0, Since(start));
-    result->poses = lm.poses;
-    result->cost = lm.cost;
+    LocalSearchPolishConfig polish;
+    polish.rbcd = config.lm_polish;
+    polish.certificate = config.staircase.certificate;
+    const LocalSearchCertificate judged = CertifyLocalSearch(graph, lm.poses, polish);
+    result->poses = judged.poses;
+    result->cost = judged.certificate.objective;
+    result->local_search_cost = judged.input_cost;
+    result->polish_iterations = judged.polish_iterations;
     result->iterations = lm.iterations;
     result->rank = graph.d;
-    const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(graph);
-    SetCertificate(Certify(Q, lm.poses, graph.d, config.staircase.certificate), result);
+    SetCertificate(judged.certificate, config.staircase.certificate.max_relative_bound, result);
     if (progress)
-        progress("certify", graph.d, lm.cost, result->certificate.gradient_norm, Since(start));
+        progress("certify", graph.d, result->cost, result->certificate.gradient_norm, Since(start));
 }
 
 void SolveWithRbcd(const slam::PoseGraph& graph, const PoseGraphSolverConfig& config,
@@ -85,7 +96,7 @@ void SolveWithRbcd(const slam::PoseGraph& graph, const PoseGraphSolverConfig& co
     result->rank = stairs.rank;
     result->iterations = stairs.iterations;
     result->escapes = stairs.escapes;
-    SetCertificate(stairs.certificate, result);
+    SetCertificate(stairs.certificate, config.staircase.certificate.max_relative_bound, result);
 }
 
 }  // namespace
@@ -105,6 +116,7 @@ void PoseGraphSolverConfig::Validate() const {
     }
     staircase.Validate();
     lm.Validate();
+    lm_polish.Validate();
     gnc.Validate();
 }
 

@@ -20,14 +20,26 @@ StaircaseResult::Status FromVerdict(CertificateResult::Status s) {
     switch (s) {
         case CertificateResult::Status::kCertified:
             return StaircaseResult::Status::kCertified;
-        case CertificateResult::Status::kNotCertified:
+        case CertificateResult::Status::kNotOptimal:
             return StaircaseResult::Status::kMaxRank;
         case CertificateResult::Status::kNotCritical:
             return StaircaseResult::Status::kNotCritical;
-        case CertificateResult::Status::kEigensolverFailed:
+        case CertificateResult::Status::kInconclusive:
             break;
     }
-    return StaircaseResult::Status::kEigensolverFailed;
+    return StaircaseResult::Status::kInconclusive;
+}
+
+/// Records the rung just certified in `result` (its verdict, totals and status).
+void AddLevel(StaircaseLevel* level, StaircaseResult* result) {
+    level->verdict = result->certificate.status;
+    level->lambda_min = result->certificate.lambda_min;
+    level->certify_seconds = result->certificate.seconds;
+    result->levels.push_back(*level);
+    result->iterations += level->rbcd_iterations;
+    result->solve_seconds += level->solve_seconds;
+    result->certify_seconds += level->certify_seconds;
+    result->status = FromVerdict(result->certificate.status);
 }
 
 }  // namespace
@@ -43,6 +55,11 @@ void StaircaseConfig::Validate() const {
     if (max_resolves < 0) {
         throw std::invalid_argument(
             "StaircaseConfig.max_resolves = " + std::to_string(max_resolves) + ": must be >= 0");
+    }
+    if (!(resolve_tolerance_factor > 0.0 && resolve_tolerance_factor <= 1.0)) {
+        throw std::invalid_argument("StaircaseConfig.resolve_tolerance_factor = " +
+                                    std::to_string(resolve_tolerance_factor) +
+                                    ": must be in (0, 1]");
     }
 }
 
@@ -61,6 +78,7 @@ StaircaseResult SolveCertified(const slam::PoseGraph& graph, const slam::Partiti
     StaircaseResult result;
     result.X = X0;
     int resolves = 0;
+    slam::RbcdConfig rbcd = config.rbcd;  // tightened by each rerun at one rank
     auto report = [&](const char* stage, double cost, double grad) {
         if (!progress) return;
         progress({stage, static_cast<int>(result.X.rows()), cost, grad,
@@ -69,8 +87,8 @@ StaircaseResult SolveCertified(const slam::PoseGraph& graph, const slam::Partiti
     while (true) {
         StaircaseLevel level;
         level.rank = static_cast<int>(result.X.rows());
-        const slam::RbcdResult solved = slam::SolveRbcd(
-            graph, partition, result.X, config.rbcd, [&](const slam::RbcdProgress& p) {
+        const slam::RbcdResult solved =
+            slam::SolveRbcd(graph, partition, result.X, rbcd, [&](const slam::RbcdProgress& p) {
                 if (progress) {
                     progress({"rbcd", level.rank, p.cost, p.grad_norm,
                               result.certificate.lambda_min, Since(start)});
@@ -83,22 +101,21 @@ StaircaseResult SolveCertified(const slam::PoseGraph& graph, const slam::Partiti
         level.solve_seconds = solved.seconds;
         report("solve", solved.cost, solved.grad_norm);
         result.certificate = Certify(Q, result.X, d, config.certificate);
-        level.verdict = result.certificate.status;
-        level.lambda_min = result.certificate.lambda_min;
-        level.certify_seconds = result.certificate.seconds;
-        result.levels.push_back(level);
-        result.iterations += level.rbcd_iterations;
-        result.solve_seconds += level.solve_seconds;
-        result.certify_seconds += level.certify_seconds;
-        report("certify", result.certificate.cost, result.certificate.gradient_norm);
-        result.status = FromVerdict(result.certificate.status);
-        if (result.certificate.status == CertificateResult::Status::kNotCritical &&
+        AddLevel(&level, &result);
+        report("certify", result.certificate.objective, result.certificate.gradient_norm);
+        const auto verdict = result.certificate.status;
+        if ((verdict == CertificateResult::Status::kNotCritical ||
+             verdict == CertificateResult::Status::kInconclusive) &&
             resolves++ < config.max_resolves) {
-            continue;  // RBCD stopped short (stall or budget): give it another run from here
+            // RBCD stopped short (stall, budget, or too loose for a tight bound): rerun from
+            // here with a tighter tolerance.
+            rbcd.rel_grad_tol *= config.resolve_tolerance_factor;
+            continue;
         }
-        if (result.certificate.status != CertificateResult::Status::kNotCertified) break;
+        if (result.certificate.status != CertificateResult::Status::kNotOptimal) break;
         if (result.X.rows() + 1 > config.max_rank) break;
-        const double rbcd_tol = config.rbcd.rel_grad_tol * std::max(1.0, result.certificate.cost);
+        const double rbcd_tol =
+            config.rbcd.rel_grad_tol * std::max(1.0, result.certificate.objective);
         const EscapeResult escape =
             EscapeSaddle(Q, result.X, d, result.certificate.eigenvector, rbcd_tol, config.escape);
         if (escape.status != EscapeResult::Status::kEscaped) {
@@ -106,6 +123,7 @@ StaircaseResult SolveCertified(const slam::PoseGraph& graph, const slam::Partiti
             break;
         }
         result.X = escape.X;
+        rbcd.rel_grad_tol = config.rbcd.rel_grad_tol;
         ++result.escapes;
         report("escape", escape.cost_after, escape.gradient_norm);
     }

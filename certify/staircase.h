@@ -27,8 +27,13 @@ struct StaircaseConfig {
     EscapeConfig escape;            ///< line search of each escape
     int max_rank = 10;              ///< give up above this rank, >= the rank of X0
     /// RBCD reruns from the same point (iteration budget renewed) when the certificate finds it
-    /// not critical enough, >= 0.
-    int max_resolves = 1;
+    /// not critical enough, or critical but inconclusive (e.g. S + eta D PSD with a bound above
+    /// max_relative_bound: lambda_min slightly below 0 until X converges further), >= 0.
+    int max_resolves = 3;
+    /// Each rerun's relative gradient tolerance is the previous one times this, in (0, 1]: a
+    /// point that stopped inconclusive needs to be closer to critical, not another try at the
+    /// same tolerance.
+    double resolve_tolerance_factor = 0.01;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -59,11 +64,11 @@ struct StaircaseProgress {
 /// Outcome of SolveCertified.
 struct StaircaseResult {
     enum class Status {
-        kCertified,          ///< the final X is certified globally optimal for the relaxation
-        kMaxRank,            ///< still not certified at max_rank
-        kNotCritical,        ///< RBCD did not reach the certificate's first-order tolerance
-        kEigensolverFailed,  ///< verdict "not certified" but no eigenvector to escape along
-        kEscapeFailed,       ///< no escape step decreased the cost
+        kCertified,     ///< the final X is certified globally optimal for the relaxation
+        kMaxRank,       ///< still not certified at max_rank
+        kNotCritical,   ///< RBCD did not reach the certificate's first-order tolerance
+        kInconclusive,  ///< the certificate neither proved nor refuted (its `reason`)
+        kEscapeFailed,  ///< no escape step decreased the cost
     };
     Status status = Status::kNotCritical;
     Eigen::MatrixXd X;                   ///< final r x (d+1)n iterate

@@ -39,7 +39,7 @@ const char* VerdictName(v1::CertificateVerdict verdict) {
         case v1::CERTIFICATE_VERDICT_CERTIFIED:
             return "certified";
         case v1::CERTIFICATE_VERDICT_NOT_CERTIFIED:
-            return "not certified";
+            return "not optimal";
         case v1::CERTIFICATE_VERDICT_INCONCLUSIVE:
             return "inconclusive";
         default:
@@ -86,7 +86,11 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
             result->verdict = VerdictName(report.verdict());
             result->certificate_path = PathName(report.path());
             result->lambda_min = report.lambda_min();
-            result->suboptimality_bound = report.suboptimality_bound();
+            // A bound is proven only by the central check of a certified report; a
+            // distributed round sends none.
+            result->has_bound = report.verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED &&
+                                report.path() != v1::CERTIFICATE_PATH_DISTRIBUTED;
+            result->suboptimality_bound = result->has_bound ? report.suboptimality_bound() : 0.0;
             result->cost = report.objective();
             result->rank = static_cast<int>(report.rank_r());
         }

@@ -23,7 +23,8 @@ struct ActorMissionResult {
                                                ///< centralised, fallback (centralised after a
                                                ///< silent round)
     double lambda_min = 0.0;                   ///< lambda_min(S) of that certificate
-    double suboptimality_bound = 0.0;          ///< its f - f* bound
+    bool has_bound = false;                    ///< its bound below was proven
+    double suboptimality_bound = 0.0;          ///< its f - f* bound (0 unless has_bound)
     double cost = 0.0;                         ///< its objective f
     int rank = 0;                              ///< its relaxation rank
     std::vector<slam::Trajectory> trajectory;  ///< [robot], in the anchor robot's frame

@@ -223,7 +223,11 @@ void FillCertificate(const certify::MissionResult& mission, const SimulatedTeam&
     report->certified = cert.status == certify::CertificateResult::Status::kCertified;
     report->lambda_min = cert.lambda_min;
     report->lambda_min_relative = cert.lambda_min_relative;
+    report->verdict = certify::VerdictName(cert.status);
+    report->has_bound = cert.has_bound;
+    report->lower_bound = cert.lower_bound;
     report->suboptimality_bound = cert.suboptimality_bound;
+    report->relative_suboptimality_bound = cert.relative_suboptimality_bound;
     report->cost = mission.solution.cost;
     report->rank = mission.solution.rank;
     report->rbcd_iterations = mission.solution.iterations;
@@ -280,7 +284,12 @@ void FillFromActors(const ActorMissionResult& run, const std::vector<double>& rm
     report->certified = run.done && run.certified;
     report->lambda_min = run.lambda_min;
     report->lambda_min_relative = 0.0;  // not computed by the actors (pipeline_certified has it)
+    report->verdict = run.verdict;
+    report->has_bound = run.has_bound;
     report->suboptimality_bound = run.suboptimality_bound;
+    report->lower_bound = run.has_bound ? run.cost - run.suboptimality_bound : 0.0;
+    report->relative_suboptimality_bound =
+        run.has_bound && run.cost > 0.0 ? run.suboptimality_bound / run.cost : 0.0;
     report->cost = run.cost;
     report->rank = run.rank;
     report->rbcd_iterations = 0;

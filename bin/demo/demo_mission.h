@@ -35,6 +35,7 @@ struct DemoLocalSearch {
     double cost = 0.0;          ///< f at the LM solution
     double gap = 0.0;           ///< cost - f of the certified solution
     bool certified = false;     ///< the certificate's verdict on the LM solution
+    std::string verdict;        ///< that verdict, spelled as everywhere (VerdictName)
     double lambda_min = 0.0;    ///< lambda_min(S) at the LM solution
     std::vector<double> rmse;   ///< [robot] position RMSE, m
 };
@@ -51,34 +52,38 @@ struct DemoRobotRow {
 
 /// Everything the demo reports.
 struct DemoReport {
-    bool ok = false;                       ///< the mission ran and wrote its files
-    std::vector<DemoRobotRow> robots;      ///< Table I
-    bool certified = false;                ///< certificate verdict of the certified solution
-    double lambda_min = 0.0;               ///< lambda_min(S)
-    double lambda_min_relative = 0.0;      ///< lambda_min / ||Q||
-    double suboptimality_bound = 0.0;      ///< f - (tr(Lambda) - eta d n)
-    double cost = 0.0;                     ///< f of the certified solution
-    DemoLocalSearch local_search;          ///< LM from odometry (Table I's local search)
-    DemoLocalSearch local_search_aligned;  ///< LM from the one-time alignment
-    int rank = 0;                          ///< final relaxation rank
-    int rbcd_iterations = 0;               ///< RBCD iterations
-    int inter_robot_loops = 0;             ///< accepted inter-robot loop closures
-    int intra_robot_loops = 0;             ///< accepted intra-robot loop closures
-    int candidates = 0;                    ///< Scan Context candidates
-    std::int64_t bytes_sent = 0;           ///< bytes between robots (see bytes_note)
-    std::string bytes_note;                ///< how bytes_sent was obtained
-    double seconds = 0.0;                  ///< end to end, simulation included
-    double keyframes_per_second = 0.0;     ///< all keyframes / seconds
-    nlohmann::json timings;                ///< seconds per stage
-    std::string pipeline;                  ///< which path ran (actors or slam/mission directly)
-    std::string certified_source;          ///< "actor graph" or "pipeline"
-    nlohmann::json pipeline_certified;     ///< the direct pipeline's certified RBCD, to compare
-    std::string mission;                   ///< the simulated mission, in words
-    nlohmann::json actor_graph;            ///< the actor-graph run (null when not asked)
-    int tunnel_steps = 0;                  ///< odometry steps degraded in the tunnel
-    std::string loop_source;               ///< "front end" or "ground truth (fallback)"
-    std::vector<std::string> warnings;     ///< fallbacks and anything else said loudly
-    std::string out_dir;                   ///< files written here
+    bool ok = false;                            ///< the mission ran and wrote its files
+    std::vector<DemoRobotRow> robots;           ///< Table I
+    bool certified = false;                     ///< certificate verdict of the certified solution
+    double lambda_min = 0.0;                    ///< lambda_min(S)
+    double lambda_min_relative = 0.0;           ///< lambda_min / ||Q||
+    std::string verdict = "none";               ///< certificate verdict in words (VerdictName)
+    bool has_bound = false;                     ///< the bounds below were proven (S + eta D PSD)
+    double lower_bound = 0.0;                   ///< f* >= this, when has_bound
+    double suboptimality_bound = 0.0;           ///< f - lower_bound, when has_bound
+    double relative_suboptimality_bound = 0.0;  ///< suboptimality_bound / f, when has_bound
+    double cost = 0.0;                          ///< f of the certified solution
+    DemoLocalSearch local_search;               ///< LM from odometry (Table I's local search)
+    DemoLocalSearch local_search_aligned;       ///< LM from the one-time alignment
+    int rank = 0;                               ///< final relaxation rank
+    int rbcd_iterations = 0;                    ///< RBCD iterations
+    int inter_robot_loops = 0;                  ///< accepted inter-robot loop closures
+    int intra_robot_loops = 0;                  ///< accepted intra-robot loop closures
+    int candidates = 0;                         ///< Scan Context candidates
+    std::int64_t bytes_sent = 0;                ///< bytes between robots (see bytes_note)
+    std::string bytes_note;                     ///< how bytes_sent was obtained
+    double seconds = 0.0;                       ///< end to end, simulation included
+    double keyframes_per_second = 0.0;          ///< all keyframes / seconds
+    nlohmann::json timings;                     ///< seconds per stage
+    std::string pipeline;               ///< which path ran (actors or slam/mission directly)
+    std::string certified_source;       ///< "actor graph" or "pipeline"
+    nlohmann::json pipeline_certified;  ///< the direct pipeline's certified RBCD, to compare
+    std::string mission;                ///< the simulated mission, in words
+    nlohmann::json actor_graph;         ///< the actor-graph run (null when not asked)
+    int tunnel_steps = 0;               ///< odometry steps degraded in the tunnel
+    std::string loop_source;            ///< "front end" or "ground truth (fallback)"
+    std::vector<std::string> warnings;  ///< fallbacks and anything else said loudly
+    std::string out_dir;                ///< files written here
 };
 
 /// Runs the demo. Throws std::runtime_error when a file cannot be written.

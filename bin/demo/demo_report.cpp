@@ -14,6 +14,7 @@ nlohmann::json LocalSearchJson(const DemoLocalSearch& ls) {
             {"cost", ls.cost},
             {"cost_minus_certified", ls.gap},
             {"certified", ls.certified},
+            {"verdict", ls.verdict},
             {"lambda_min", ls.lambda_min},
             {"rmse", ls.rmse}};
 }
@@ -32,6 +33,7 @@ DemoLocalSearch LocalSearchReport(const std::string& start, const certify::Local
     out.cost = run.cost;
     out.gap = run.cost - certified_cost;
     out.certified = run.certificate.status == certify::CertificateResult::Status::kCertified;
+    out.verdict = certify::VerdictName(run.certificate.status);
     out.lambda_min = run.certificate.lambda_min;
     out.rmse = rmse;
     return out;
@@ -56,7 +58,13 @@ nlohmann::json DemoReportJson(const DemoReport& report) {
     }
     j["certified_source"] = report.certified_source;
     j["pipeline_certified"] = report.pipeline_certified;
-    j["suboptimality_bound"] = report.suboptimality_bound;
+    j["verdict"] = report.verdict;
+    j["objective"] = report.cost;
+    if (report.has_bound) {  // only a proven bound
+        j["lower_bound"] = report.lower_bound;
+        j["suboptimality_bound"] = report.suboptimality_bound;
+        j["relative_suboptimality_bound"] = report.relative_suboptimality_bound;
+    }
     j["cost"] = report.cost;
     j["local_search"] = LocalSearchJson(report.local_search);
     j["local_search_from_alignment"] = LocalSearchJson(report.local_search_aligned);

@@ -25,18 +25,6 @@ double Seconds(std::chrono::steady_clock::time_point since) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
-RelativePoseMeasurement Edge(int i, int j, const Eigen::Isometry3d& T_i_j, double sigma_t,
-                             double sigma_r) {
-    RelativePoseMeasurement m;
-    m.i = i;
-    m.j = j;
-    m.R = T_i_j.linear();
-    m.t = T_i_j.translation();
-    m.tau = 1.0 / (sigma_t * sigma_t);
-    m.kappa = 1.0 / (2.0 * sigma_r * sigma_r);
-    return m;
-}
-
 /// Poses (3 x 4n) moved so pose 0 is the identity: the team frame is robot 0's odometry frame.
 PoseMatrix Anchor(const PoseMatrix& poses) {
     const int n = static_cast<int>(poses.cols() / 4);
@@ -72,23 +60,6 @@ PoseMatrix FromIsometries(const std::vector<std::vector<Eigen::Isometry3d>>& pos
         for (const auto& T : robot) out.block<3, 4>(0, 4 * g++) = T.matrix().topRows<3>();
     }
     return out;
-}
-
-/// One Riemannian staircase step (MATH.md, "Saddle escape"): lift X to rank r+1 and move along
-/// e_{r+1} v^T, halving the step until the cost decreases.
-Eigen::MatrixXd EscapeSaddle(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
-                             const Eigen::VectorXd& v) {
-    const int r = static_cast<int>(X.rows());
-    Eigen::MatrixXd X_plus = Eigen::MatrixXd::Zero(r + 1, X.cols());
-    X_plus.topRows(r) = X;
-    const double f0 = LiftedCost(Q, X_plus);
-    Eigen::MatrixXd direction = Eigen::MatrixXd::Zero(r + 1, X.cols());
-    direction.row(r) = v.transpose();
-    for (double alpha = 1e2 * std::max(1.0, X.norm()); alpha > 1e-10; alpha *= 0.5) {
-        Eigen::MatrixXd candidate = Retract(X_plus, alpha * direction, 3);
-        if (LiftedCost(Q, candidate) < f0) return candidate;
-    }
-    return X_plus;
 }
 
 }  // namespace
@@ -128,9 +99,10 @@ PoseGraph BuildJointGraph(const std::vector<std::vector<Eigen::Isometry3d>>& odo
         for (size_t i = 0; i < odometry[r].size(); ++i) {
             graph.ids.push_back({static_cast<int>(r), static_cast<int>(i)});
             if (i > 0) {
-                auto edge =
-                    Edge(graph.n - 1, graph.n, odometry[r][i - 1].inverse() * odometry[r][i],
-                         noise.odometry_sigma_t_m, noise.odometry_sigma_r_rad);
+                auto edge = MeasurementOf(graph.n - 1, graph.n,
+                                          odometry[r][i - 1].inverse() * odometry[r][i],
+                                          RotationWeight(noise.odometry_sigma_r_rad),
+                                          TranslationWeight(noise.odometry_sigma_t_m));
                 edge.is_known_inlier = true;
                 graph.edges.push_back(edge);
             }
@@ -140,9 +112,9 @@ PoseGraph BuildJointGraph(const std::vector<std::vector<Eigen::Isometry3d>>& odo
     for (const auto& loop : loops) {
         CERTISLAM_CHECK(loop.a.robot >= 0 && loop.a.robot < static_cast<int>(odometry.size()));
         CERTISLAM_CHECK(loop.b.robot >= 0 && loop.b.robot < static_cast<int>(odometry.size()));
-        graph.edges.push_back(Edge(offset[loop.a.robot] + loop.a.index,
-                                   offset[loop.b.robot] + loop.b.index, loop.T_a_b,
-                                   noise.loop_sigma_t_m, noise.loop_sigma_r_rad));
+        graph.edges.push_back(MeasurementOf(
+            offset[loop.a.robot] + loop.a.index, offset[loop.b.robot] + loop.b.index, loop.T_a_b,
+            RotationWeight(noise.loop_sigma_r_rad), TranslationWeight(noise.loop_sigma_t_m)));
     }
     return graph;
 }
@@ -163,24 +135,20 @@ std::vector<Trajectory> SplitTrajectories(const PoseGraph& graph, const PoseMatr
 JointSolution SolveCertifiedJoint(const PoseGraph& graph, const MissionSolverConfig& config) {
     config.Validate();
     const auto start = std::chrono::steady_clock::now();
+    StaircaseConfig stairs;
+    stairs.rbcd = config.rbcd;
+    stairs.certificate = config.certificate;
+    stairs.max_rank = config.rank + config.max_staircase_steps;
+    const StaircaseResult solved =
+        SolveCertified(graph, PartitionFromIds(graph),
+                       LiftToRank(ChordalInitialization(graph), config.rank), stairs);
     JointSolution solution;
-    const Partition partition = PartitionFromIds(graph);
-    const Eigen::SparseMatrix<double> Q = ConnectionLaplacian(graph);
-    Eigen::MatrixXd X = LiftToRank(ChordalInitialization(graph), config.rank);
-    for (int step = 0;; ++step) {
-        const RbcdResult rbcd = SolveRbcd(graph, partition, X, config.rbcd);
-        solution.rbcd_status = rbcd.status;
-        solution.iterations += rbcd.iterations;
-        solution.rank = static_cast<int>(rbcd.X.rows());
-        solution.certificate = certify::Certify(Q, rbcd.X, 3, config.certificate);
-        X = rbcd.X;
-        const bool saddle =
-            solution.certificate.status == certify::CertificateResult::Status::kNotCertified;
-        if (!saddle || step >= config.max_staircase_steps) break;
-        X = EscapeSaddle(Q, X, solution.certificate.eigenvector);
-        ++solution.staircase_steps;
-    }
-    solution.poses = Anchor(RoundSolution(graph, X));
+    solution.status = solved.status;
+    solution.rank = solved.rank;
+    solution.iterations = solved.iterations;
+    solution.staircase_steps = solved.escapes;
+    solution.certificate = solved.certificate;
+    solution.poses = Anchor(RoundSolution(graph, solved.X));
     solution.cost = Objective(graph, solution.poses);
     solution.seconds = Seconds(start);
     return solution;
@@ -190,14 +158,17 @@ LocalSearchRun LocalSearchJoint(const PoseGraph& graph, const PoseMatrix& initia
                                 const MissionSolverConfig& config) {
     const auto start = std::chrono::steady_clock::now();
     const LmResult lm = SolveLm(graph, initial, config.local_search);
+    LocalSearchPolishConfig polish;
+    polish.certificate = config.certificate;
+    const LocalSearchCertificate judged = CertifyLocalSearch(graph, lm.poses, polish);
     LocalSearchRun run;
-    run.poses = Anchor(lm.poses);
+    run.poses = Anchor(judged.poses);
     run.status = lm.status;
     run.initial_cost = lm.initial_cost;
+    run.lm_cost = lm.cost;
     run.cost = Objective(graph, run.poses);
     run.iterations = lm.iterations;
-    run.certificate =
-        certify::Certify(ConnectionLaplacian(graph), run.poses, 3, config.certificate);
+    run.certificate = judged.certificate;
     run.seconds = Seconds(start);
     return run;
 }

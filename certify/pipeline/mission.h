@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "certify/certificate.h"
+#include "certify/local_search.h"
+#include "certify/staircase.h"
 #include "slam/backend/lm_baseline.h"
 #include "slam/backend/rbcd.h"
 #include "slam/core/keyframe.h"
@@ -57,14 +59,13 @@ struct MissionConfig {
 struct JointSolution {
     /// 3 x 4n: pose 0 = identity from SolveCertifiedJoint, the team frame from RunMission.
     slam::PoseMatrix poses;
-    slam::RbcdResult::Status rbcd_status =
-        slam::RbcdResult::Status::kMaxIterations;  ///< last RBCD run
-    int rank = 0;                                  ///< rank of the final (certified) run
-    int iterations = 0;                            ///< RBCD iterations over all staircase steps
-    int staircase_steps = 0;                       ///< saddle escapes taken
-    double cost = 0.0;                             ///< f of the rounded poses (SE-Sync objective)
-    double seconds = 0.0;                          ///< solve + certify
-    CertificateResult certificate;                 ///< of the final lifted point
+    StaircaseResult::Status status = StaircaseResult::Status::kNotCritical;  ///< the staircase's
+    int rank = 0;                   ///< rank of the final (certified) run
+    int iterations = 0;             ///< RBCD iterations over all staircase steps
+    int staircase_steps = 0;        ///< saddle escapes taken
+    double cost = 0.0;              ///< f of the rounded poses (SE-Sync objective)
+    double seconds = 0.0;           ///< solve + certify
+    CertificateResult certificate;  ///< of the final lifted point
 };
 
 /// One run of the local-search baseline (LM) from one initial guess, and its certificate.
@@ -73,10 +74,11 @@ struct LocalSearchRun {
     slam::PoseMatrix poses;
     slam::LmResult::Status status = slam::LmResult::Status::kFailed;  ///< LM's outcome
     double initial_cost = 0.0;                                        ///< f at the guess
-    double cost = 0.0;                                                ///< f at the LM solution
-    int iterations = 0;                                               ///< LM iterations
-    double seconds = 0.0;                                             ///< LM + certificate
-    CertificateResult certificate;  ///< what the certificate says of the LM solution
+    double lm_cost = 0.0;                                             ///< f where LM stopped
+    double cost = 0.0;              ///< f at the LM solution polished on f (CertifyLocalSearch)
+    int iterations = 0;             ///< LM iterations
+    double seconds = 0.0;           ///< LM + certificate
+    CertificateResult certificate;  ///< what the certificate says of the polished LM solution
 };
 
 /// What the pipeline gives: per-robot trajectories of the four methods, all but odometry in the

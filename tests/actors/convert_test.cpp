@@ -197,9 +197,9 @@ TEST(Convert, PublicPosesRoundTripAndRejectCountMismatch) {
 
 TEST(Convert, CertificateReportCarriesVerdictAndLambda) {
     certify::CertificateResult result;
-    result.status = certify::CertificateResult::Status::kNotCertified;
+    result.status = certify::CertificateResult::Status::kNotOptimal;
     result.lambda_min = -0.25;
-    result.cost = 3.0;
+    result.objective = 3.0;
     const auto report = ToProto(result, 5);
     EXPECT_EQ(report.verdict(), v1::CERTIFICATE_VERDICT_NOT_CERTIFIED);
     EXPECT_EQ(report.lambda_min(), -0.25);

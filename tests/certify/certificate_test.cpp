@@ -68,10 +68,16 @@ TEST_P(TwoPoseByDimension, ClosedFormOptimumCertifies) {
     const auto Q = slam::ConnectionLaplacian(p.graph);
     const CertificateResult result = Certify(Q, p.X, d);
     EXPECT_EQ(result.status, CertificateResult::Status::kCertified);
-    EXPECT_NEAR(result.cost, p.f_star, kCostTolerance * p.f_star);
+    EXPECT_NEAR(result.objective, p.f_star, kCostTolerance * p.f_star);
     EXPECT_NEAR(result.duality_gap, 0.0, kCostTolerance * p.f_star);
     EXPECT_GE(result.lambda_min_relative, -kDenseMatchTolerance);
     EXPECT_LE(result.suboptimality_bound, result.eta * d * 2 + kCostTolerance * p.f_star);
+    // The exact bound: f* >= lower_bound, and it is f* up to the refined eta d n.
+    ASSERT_TRUE(result.has_bound);
+    EXPECT_LE(result.lower_bound, p.f_star * (1.0 + kCostTolerance));
+    EXPECT_GE(result.lower_bound, p.f_star * (1.0 - 1e-6));
+    EXPECT_LE(result.relative_suboptimality_bound, 1e-6);
+    EXPECT_STREQ(VerdictName(result.status), "certified");
 }
 
 TEST_P(TwoPoseByDimension, PerturbedPointIsNotCritical) {
@@ -81,6 +87,9 @@ TEST_P(TwoPoseByDimension, PerturbedPointIsNotCritical) {
     const CertificateResult result = Certify(slam::ConnectionLaplacian(p.graph), p.X, d);
     EXPECT_EQ(result.status, CertificateResult::Status::kNotCritical);
     EXPECT_GT(result.gradient_norm, result.gradient_tolerance);
+    EXPECT_FALSE(result.has_bound);  // no bound at a point that is not critical
+    EXPECT_EQ(result.lower_bound, 0.0);
+    EXPECT_EQ(result.suboptimality_bound, 0.0);
 }
 
 TEST_P(TwoPoseByDimension, TwistedCycleIsCriticalButNotCertified) {
@@ -88,11 +97,14 @@ TEST_P(TwoPoseByDimension, TwistedCycleIsCriticalButNotCertified) {
     const int n = 8;
     const auto Q = slam::ConnectionLaplacian(testing::IdentityCycle(d, n));
     const CertificateResult result = Certify(Q, testing::TwistedCycle(d, n), d);
-    EXPECT_EQ(result.status, CertificateResult::Status::kNotCertified);
-    EXPECT_GT(result.cost, 1.0);  // f* = 0
+    EXPECT_EQ(result.status, CertificateResult::Status::kNotOptimal);
+    EXPECT_GT(result.objective, 1.0);  // f* = 0
     EXPECT_LE(result.gradient_norm, result.gradient_tolerance);
     EXPECT_LT(result.lambda_min_relative, -kSaddleCurvature);
     EXPECT_FALSE(result.psd_at_eta);
+    EXPECT_FALSE(result.has_bound);  // tr(Lambda) - eta d n is no bound here
+    EXPECT_EQ(result.suboptimality_bound, 0.0);
+    EXPECT_GT(result.escape_descent, 0.0);
     ASSERT_EQ(result.eigenvector.size(), Q.rows());
     EXPECT_NEAR(result.eigenvector.norm(), 1.0, 1e-12);
 }

@@ -36,12 +36,16 @@ TEST(SolveCommand, JsonHasEveryKeyAndReachesTheCertifiedOptimum) {
     for (int robots : {1, 3}) {
         const nlohmann::json j = SolveJson(TinyGrid() + " --robots " + std::to_string(robots));
         for (const char* key :
-             {"cost", "certified", "lambda_min", "suboptimality_bound", "rank", "iterations",
+             {"cost", "objective", "certified", "verdict", "lambda_min", "lower_bound",
+              "suboptimality_bound", "relative_suboptimality_bound", "rank", "iterations",
               "seconds", "peak_rss_mb", "poses", "edges", "robots"}) {
             EXPECT_TRUE(j.contains(key)) << key;
         }
         EXPECT_LE(std::abs(j["cost"].get<double>() - kTinyGridFStar) / kTinyGridFStar, kRelGap);
         EXPECT_TRUE(j["certified"].get<bool>());
+        EXPECT_EQ(j["verdict"].get<std::string>(), "certified");
+        EXPECT_LE(j["relative_suboptimality_bound"].get<double>(), 1e-6);
+        EXPECT_LE(j["lower_bound"].get<double>(), kTinyGridFStar * (1.0 + kRelGap));
         EXPECT_EQ(j["poses"].get<int>(), 9);
         EXPECT_EQ(j["edges"].get<int>(), 11);
         EXPECT_EQ(j["robots"].get<int>(), robots);
@@ -55,6 +59,19 @@ TEST(SolveCommand, LmBaselineIsJudgedByTheCertificate) {
     const nlohmann::json j = SolveJson(TinyGrid() + " --method lm");
     EXPECT_TRUE(j["certified"].is_boolean());
     EXPECT_GE(j["cost"].get<double>(), kTinyGridFStar * (1.0 - kRelGap));
+    // One spelling of the verdict, and a bound only with a proven one.
+    const std::string verdict = j["verdict"].get<std::string>();
+    EXPECT_TRUE(verdict == "certified" || verdict == "not optimal" || verdict == "not critical" ||
+                verdict == "inconclusive")
+        << verdict;
+    EXPECT_EQ(j["certified"].get<bool>(), verdict == "certified");
+    EXPECT_EQ(j.contains("suboptimality_bound"), j.contains("lower_bound"));
+    if (verdict == "certified") {
+        EXPECT_TRUE(j.contains("suboptimality_bound"));
+    }
+    if (verdict == "not optimal" || verdict == "not critical") {
+        EXPECT_FALSE(j.contains("suboptimality_bound"));
+    }
 }
 
 TEST(SolveCommand, WritesTheSolutionAndAProgressLine) {

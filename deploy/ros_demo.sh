@@ -6,7 +6,8 @@
 # and exits 0 when both robots' paths arrived and their last verdict is certified.
 # Usage: deploy/ros_demo.sh [OUT_DIR]
 #   env: BUILD_DIR (build), RATE (rosbag play rate, 2), KEYFRAMES (per robot, 150),
-#        TIMEOUT (seconds after the bags end, 240)
+#        TIMEOUT (recorder's limit, seconds, 240), COMPARE (1: also `certislam run` the same
+#        team and report the largest position difference of the paths; 0: skip)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${BUILD_DIR:-$root/build}"
@@ -96,9 +97,36 @@ wait "$recorder" || status=$?
 cleanup
 pids=()
 end_s=$(date +%s.%N)
+# The same team in one process on the simulator's keyframes (`certislam run`), to compare with.
+if [ "${COMPARE:-1}" != 0 ]; then
+    "$certislam" run "$out/team.json" --out "$out/run" --json >"$out/run.json" 2>"$out/run.log" ||
+        true
+fi
 /usr/bin/python3 - "$out" "$start_s" "$end_s" "$rate" <<'PY'
-import json, sys
+import json, math, os, sys
 out, start, end, rate = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
+
+def tum(path):
+    with open(path) as f:
+        return [[float(x) for x in l.split()] for l in f if l.strip() and not l.startswith("#")]
+
+def compare(rec):
+    # Largest position difference between each node's last path and `certislam run`'s.
+    if not os.path.exists(f"{out}/run.json"):
+        return None
+    try:
+        run = json.load(open(f"{out}/run.json"))
+    except ValueError:
+        return {"error": f"certislam run failed; see {out}/run.log"}
+    res = {"inter_robot_loops_run": run.get("inter_robot_loops"), "verdict_run": run.get("verdict")}
+    for k in ("0", "1"):
+        a, b = f"{out}/robot{k}.tum", f"{out}/run/robot{k}.tum"
+        if os.path.exists(a) and os.path.exists(b):
+            pa, pb = tum(a), tum(b)
+            n = min(len(pa), len(pb))
+            res[f"robot{k}_max_diff_m"] = max((math.dist(pa[i][1:4], pb[i][1:4])
+                                              for i in range(n)), default=None)
+    return res
 try:
     rec = json.load(open(f"{out}/record.json"))
 except Exception as e:
@@ -106,6 +134,7 @@ except Exception as e:
 rec["rate"] = rate
 rec["wall_time_s"] = round(end - start, 2)
 rec["bags"] = json.load(open(f"{out}/bags.json"))
+rec["vs_certislam_run"] = compare(rec)
 print(json.dumps(rec))
 PY
 exit "$status"

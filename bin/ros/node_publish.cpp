@@ -82,8 +82,10 @@ nlohmann::json NodePublisher::MakeStatus(const actors::SolverSnapshot& s) {
 void NodePublisher::Tick() {
     const actors::SolverSnapshot s = node_.Snapshot();
     const std::vector<slam::LoopClosure> loops = loops_.Loops();
-    if (s.steps != last_steps_ || loops.size() != last_loops_) {
+    if (s.steps != last_steps_ || loops.size() != last_loops_ ||
+        s.inter_robot_loops != last_solver_loops_) {
         last_steps_ = s.steps;
+        last_solver_loops_ = s.inter_robot_loops;
         last_loops_ = loops.size();
         if (!s.trajectory.empty()) {
             bridge_.PublishPath(s.trajectory);

@@ -31,7 +31,7 @@ class NodePublisher {
                   actors::LiveKeyframes& live, actors::RobotNode& node,
                   const actors::LoopWatcherActor& loops, int robot, double mesh_voxel_m);
 
-    /// Publishes path and loops when the solver stepped or a loop changed, TF and status always,
+    /// Publishes path and loops when the solver stepped or the loops changed, TF and status always,
     /// the mesh every mesh period.
     void Tick();
     /// The status as last published.
@@ -52,6 +52,7 @@ class NodePublisher {
     std::uint64_t last_steps_ = ~std::uint64_t{0};
     std::chrono::steady_clock::time_point next_mesh_;
     std::size_t last_loops_ = 0;
+    int last_solver_loops_ = 0;
     int paths_ = 0;
     nlohmann::json status_;
 };

@@ -10,6 +10,8 @@ PACKAGES=(
   libpcl-dev mpi-default-dev libnanoflann-dev libopenvdb-dev libtbb-dev libceres-dev
   libcli11-dev nlohmann-json3-dev libyaml-cpp-dev libclang-rt-14-dev iproute2
   librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev pluginlib-dev libament-index-cpp-dev
+  ros-core-dev libroscpp-dev libtf2-ros-dev libvisualization-msgs-dev librosbag-dev
+  python3-rosmaster python3-rostopic python3-rosbag python3-rospy
   libzstd-dev
 )
 

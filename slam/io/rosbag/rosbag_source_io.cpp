@@ -132,9 +132,7 @@ Status ReadClouds(rosbag::Bag& bag, const std::string& path, const RosbagSourceC
         if (p.pose == nullptr) continue;
         if (options.load_clouds) {
             const bool in_odom =
-                config.cloud_frame == RosbagCloudFrame::kOdom ||
-                (config.cloud_frame == RosbagCloudFrame::kAuto && !msg->header.frame_id.empty() &&
-                 msg->header.frame_id == p.pose->frame_id);
+                CloudIsInOdomFrame(config.cloud_frame, msg->header.frame_id, p.pose->frame_id);
             PointCloud cloud;
             std::string why;
             if (!DecodePointCloud2(*msg, &cloud, &why)) {
@@ -201,6 +199,13 @@ KeyframeSourceResult ReadOpenBag(rosbag::Bag& bag, const std::string& path,
 }
 
 }  // namespace
+
+bool CloudIsInOdomFrame(RosbagCloudFrame frame, const std::string& cloud_frame_id,
+                        const std::string& odom_frame_id) {
+    return frame == RosbagCloudFrame::kOdom ||
+           (frame == RosbagCloudFrame::kAuto && !cloud_frame_id.empty() &&
+            cloud_frame_id == odom_frame_id);
+}
 
 void RosbagSourceConfig::Validate() const {
     if (cloud_topic.empty()) {

@@ -18,6 +18,11 @@ enum class RosbagCloudFrame {
     kOdom,    ///< the odometry frame: points are mapped into the sensor frame by T_odom_sensor^-1
 };
 
+/// True when a cloud in frame `cloud_frame_id` is in the odometry frame `odom_frame_id` under
+/// the rule `frame` (kAuto: the frame ids are equal and not empty).
+bool CloudIsInOdomFrame(RosbagCloudFrame frame, const std::string& cloud_frame_id,
+                        const std::string& odom_frame_id);
+
 /// Topics and pairing rules of a LIO-SAM bag.
 struct RosbagSourceConfig {
     std::string cloud_topic = "/lio_sam/mapping/cloud_registered_raw";  ///< PointCloud2 topic

@@ -114,7 +114,8 @@ TEST(Convert, ScanContextRoundTripsAndRejectsWrongSizes) {
 
 TEST(Convert, CompactScanContextIsSmallCloseAndRejectsForgedBytes) {
     constexpr double kHalfStepM = 0.025 + 1e-6;  // 5 cm height steps
-    constexpr double kMaxDistanceChange = 0.01;  // slam/frontend/scan_context_compression's own bound
+    constexpr double kMaxDistanceChange =
+        0.01;  // slam/frontend/scan_context_compression's own bound
     const auto kf = MakeKeyframe(20000);
     const auto sc = slam::MakeScanContext(*kf.cloud, slam::ScanContextConfig{});
     std::string compact_bytes;
@@ -171,7 +172,7 @@ TEST(Convert, LoopClosureRoundTripsAndRejectsBadWeights) {
 }
 
 TEST(Convert, PublicPosesRoundTripAndRejectCountMismatch) {
-    PoseBlocks poses;
+    certify::PoseBlocks poses;
     poses.ids = {{0, 3}, {0, 9}};
     poses.blocks = Eigen::MatrixXd::Random(5, 8);
     poses.iteration = 42;

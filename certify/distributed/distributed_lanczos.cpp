@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <limits>
 #include <memory>
 #include <random>
 #include <set>
@@ -21,7 +22,11 @@ constexpr double kBreakdown = 1e-300;       ///< beta below this: the Krylov spa
 constexpr int kSetupStage = 0;              ///< reduction of the setup sums (step 0)
 constexpr int kPass1Stage = 1;              ///< alpha = v_k^T S v_k
 constexpr int kPass2Stage = 2;              ///< full reorthogonalisation pass and the squared norm
+constexpr int kBisections = 200;            ///< bisection steps at most (each halves the bracket)
 constexpr std::uint64_t kRobotSeed = 7919;  ///< start vector seed stride per robot
+
+constexpr double kInverseIterationShift = 1e-10;  ///< shift below lambda, relative to max |Ritz|
+constexpr int kInverseIterationSweeps = 3;        ///< sweeps of inverse iteration
 
 /// Setup sums, in message order.
 enum SetupIndex { kCost, kGradientSq, kQRowSum, kTraceLambda, kStartNormSq, kDimension, kSetupN };
@@ -31,6 +36,66 @@ enum SetupIndex { kCost, kGradientSq, kQRowSum, kTraceLambda, kStartNormSq, kDim
 void SubtractCombination(Eigen::VectorXd* u, const std::vector<Eigen::VectorXd>& V,
                          const std::vector<double>& c) {
     for (size_t i = 0; i < V.size(); ++i) *u -= c[i] * V[i];
+}
+
+/// Eigenvalues of the tridiagonal T (diagonal a, off-diagonal off) below x (Sturm count).
+int CountBelow(const Eigen::VectorXd& a, const Eigen::VectorXd& off, double x) {
+    int count = 0;
+    double d = 1.0;
+    for (Eigen::Index i = 0; i < a.size(); ++i) {
+        d = a(i) - x - (i > 0 ? off(i - 1) * off(i - 1) / d : 0.0);
+        if (d == 0.0) d = -std::numeric_limits<double>::min();  // x is an eigenvalue: below
+        if (d < 0.0) ++count;
+    }
+    return count;
+}
+
+/// The k-th smallest eigenvalue (k from 0) of the tridiagonal T by bisection on the Sturm count:
+/// O(m) per halving instead of the O(m^2) of a full tridiagonal eigen-decomposition, so the
+/// Ritz values can be checked every few steps of a long Lanczos run.
+double TridiagonalEigenvalue(const Eigen::VectorXd& a, const Eigen::VectorXd& off, int k) {
+    double lo = a(0), hi = a(0);
+    for (Eigen::Index i = 0; i < a.size(); ++i) {  // Gershgorin
+        const double radius =
+            (i > 0 ? std::abs(off(i - 1)) : 0.0) + (i + 1 < a.size() ? std::abs(off(i)) : 0.0);
+        lo = std::min(lo, a(i) - radius);
+        hi = std::max(hi, a(i) + radius);
+    }
+    const double width = std::max(std::abs(lo), std::abs(hi));
+    for (int it = 0; it < kBisections; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        if (hi - lo <= 2.0 * std::numeric_limits<double>::epsilon() * width || mid <= lo ||
+            mid >= hi) {
+            break;
+        }
+        (CountBelow(a, off, mid) > k ? hi : lo) = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+/// Unit eigenvector of the tridiagonal T (diagonal a, off-diagonal off) for its smallest
+/// eigenvalue `lambda`: inverse iteration with T - (lambda - delta) I, which is positive definite,
+/// so the Thomas algorithm is stable (O(m) per sweep).
+Eigen::VectorXd TridiagonalEigenvector(const Eigen::VectorXd& a, const Eigen::VectorXd& off,
+                                       double lambda, double scale) {
+    const Eigen::Index m = a.size();
+    const double sigma = lambda - kInverseIterationShift * std::max(scale, 1e-300);
+    Eigen::VectorXd y = Eigen::VectorXd::Ones(m);
+    Eigen::VectorXd c(m), d(m);
+    for (int sweep = 0; sweep < kInverseIterationSweeps; ++sweep) {
+        double pivot = a(0) - sigma;
+        c(0) = m > 1 ? off(0) / pivot : 0.0;
+        d(0) = y(0) / pivot;
+        for (Eigen::Index i = 1; i < m; ++i) {
+            pivot = a(i) - sigma - off(i - 1) * c(i - 1);
+            c(i) = i + 1 < m ? off(i) / pivot : 0.0;
+            d(i) = (y(i) - off(i - 1) * d(i - 1)) / pivot;
+        }
+        y(m - 1) = d(m - 1);
+        for (Eigen::Index i = m - 2; i >= 0; --i) y(i) = d(i) - c(i) * y(i + 1);
+        y.normalize();
+    }
+    return y;
 }
 
 }  // namespace
@@ -222,8 +287,7 @@ void LanczosParticipant::Advance() {
                 const double b = std::sqrt(std::max(norm_sq - c_sq, 0.0));
                 const int m = static_cast<int>(alpha_.size());
                 const bool last = b < kBreakdown || m >= max_steps_;
-                const bool converged =
-                    (last || m % settings_.check_every == 0) && Converged(b, last);
+                const bool converged = (last || m % settings_.check_every == 0) && Converged(b);
                 if (converged || last) {
                     return Finish(converged ? DistributedVerdict::Status::kCertified
                                             : DistributedVerdict::Status::kNotConverged);
@@ -240,24 +304,16 @@ void LanczosParticipant::Advance() {
     }
 }
 
-bool LanczosParticipant::Converged(double b, bool last) {
+bool LanczosParticipant::Converged(double b) {
     const int m = static_cast<int>(alpha_.size());
     const Eigen::VectorXd a = Eigen::Map<const Eigen::VectorXd>(alpha_.data(), m);
     const Eigen::VectorXd off = Eigen::Map<const Eigen::VectorXd>(beta_.data(), m - 1);
-    // Ritz values alone first (O(m^2)); the Ritz vector (O(m^3)) only once the smallest one has
-    // settled since the last check, or at the last step: a residual below tolerance needs both.
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig;
-    eig.computeFromTridiagonal(a, off, Eigen::EigenvaluesOnly);
-    const double scale = eig.eigenvalues().cwiseAbs().maxCoeff();
-    const bool settled =
-        verdict_.steps > 0 &&
-        std::abs(eig.eigenvalues()(0) - verdict_.lambda_min) <= settings_.tolerance * scale;
-    verdict_.lambda_min = eig.eigenvalues()(0);
-    verdict_.steps = m;
-    if (!settled && !last && b >= kBreakdown) return false;
-    eig.computeFromTridiagonal(a, off, Eigen::ComputeEigenvectors);
-    ritz_ = eig.eigenvectors().col(0);
+    verdict_.lambda_min = TridiagonalEigenvalue(a, off, 0);
+    const double scale =
+        std::max(std::abs(verdict_.lambda_min), std::abs(TridiagonalEigenvalue(a, off, m - 1)));
+    ritz_ = TridiagonalEigenvector(a, off, verdict_.lambda_min, scale);
     verdict_.residual_estimate = std::abs(b * ritz_(m - 1));
+    verdict_.steps = m;
     return verdict_.residual_estimate <= settings_.tolerance * scale || b < kBreakdown;
 }
 

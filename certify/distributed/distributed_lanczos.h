@@ -24,8 +24,8 @@ struct LanczosSettings {
     /// smallest eigenvalue of S sits in a cluster near 0 far below ||S||: Lanczos may need
     /// nearly the whole Krylov space, which full reorthogonalisation makes exact.
     int max_krylov = 5000;
-    double tolerance = 1e-10;  ///< Ritz residual <= this * max |Ritz value|
-    int check_every = 5;  ///< Ritz values every this many steps (vector once the smallest settles)
+    double tolerance = 1e-10;                   ///< Ritz residual <= this * max |Ritz value|
+    int check_every = 5;                        ///< Ritz values computed every this many steps
     std::uint64_t seed = 20261121;              ///< start vector seed (robot id added)
     double eta_relative = 1e-7;                 ///< certified: lambda_min >= -eta_relative ||Q||
     double gradient_tolerance_relative = 1e-4;  ///< critical: ||grad|| <= this 2 sqrt(||Q|| f)
@@ -66,8 +66,8 @@ struct DistributedVerdict {
 /// pass's sums c = V^T u with ||u||^2, sent together with the public entries of u (the
 /// CertificateVector of step k + 1): every reader finishes the next vector itself as
 /// (u - V c) / beta from the reduced sums and the public entries of V it already holds. Ritz
-/// pairs of the tridiagonal T by Eigen's SelfAdjointEigenSolver. A round whose gradient is above
-/// tolerance ends after the setup sums (kNotCritical, no steps).
+/// values by bisection (O(m) per check), the Ritz vector by inverse iteration. A round whose
+/// gradient is above tolerance ends after the setup sums (kNotCritical, no steps).
 class LanczosParticipant {
   public:
     /// Sends this robot's public entries of the step's vector to its neighbours.
@@ -93,7 +93,7 @@ class LanczosParticipant {
     bool Done() const { return done_; }
     /// The verdict (meaningful once Done()).
     const DistributedVerdict& Verdict() const { return verdict_; }
-    /// This robot's segment of the unit Ritz vector of lambda_min (empty before the first check).
+    /// This robot's segment of the unit Ritz vector of lambda_min (zero before the first check).
     Eigen::VectorXd RitzSegment() const;
 
   private:
@@ -103,7 +103,7 @@ class LanczosParticipant {
     bool Product();
     void SendVector(int step, const Eigen::VectorXd& u);
     void Share(int step, int stage, const std::vector<double>& values);
-    bool Converged(double b, bool last);
+    bool Converged(double b);
     void Finish(DistributedVerdict::Status status);
 
     LocalCertificateProblem problem_;
@@ -119,7 +119,7 @@ class LanczosParticipant {
     std::vector<Eigen::VectorXd> basis_;  ///< own segments of the Lanczos vectors
     Eigen::VectorXd w_;
     std::vector<double> alpha_, beta_;
-    Eigen::VectorXd ritz_;           ///< Ritz vector of lambda_min in the Lanczos basis
+    Eigen::VectorXd ritz_;  ///< Ritz vector of lambda_min in the Lanczos basis (last check)
     std::vector<double> pending_c_;  ///< second-pass sums that finish step_'s vector
     double pending_b_ = 1.0;         ///< and its norm
     /// robot -> its public entries of every finished Lanczos vector (to finish the next one)

@@ -1,8 +1,10 @@
 // Certifier: bundles in; centrally (joint Q and X at the anchor) or as a distributed round
-// (certifier_actor_rounds.cpp); report out, escape blocks out.
+// (every robot's rows of S, certify/distributed); report out, escape blocks out.
 #include "actors/certifier_actor.h"
 
 #include <algorithm>
+#include <chrono>
+#include <set>
 #include <stdexcept>
 
 #include "certify/saddle_escape.h"
@@ -26,57 +28,20 @@ void CertifierConfig::Validate() const {
         throw std::invalid_argument("CertifierConfig.settled_move_relative = " +
                                     std::to_string(settled_move_relative) + ": must be >= 0");
     }
-    if (lanczos.max_krylov < 2 || lanczos.check_every < 1 || !(lanczos.tolerance > 0.0)) {
-        throw std::invalid_argument(
-            "CertifierConfig.lanczos: max_krylov >= 2, check_every >= 1, tolerance > 0");
+    try {
+        lanczos.Validate();
+    } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(std::string("CertifierConfig.lanczos: ") + e.what());
     }
 }
 
 namespace {
 
-constexpr std::size_t kHistory = 16;  ///< distinct bundles kept per robot for rounds
-
-/// FNV-1a over raw bytes.
-void Mix(std::uint64_t* h, const void* data, std::size_t size) {
-    const auto* bytes = static_cast<const unsigned char*>(data);
-    for (std::size_t i = 0; i < size; ++i) *h = (*h ^ bytes[i]) * 1099511628211ull;
-}
-
-/// Mixes every edge's ends, measurement and weights (both digests hash the graph the same way).
-template <typename Edges>
-void MixEdges(std::uint64_t* h, const Edges& edges) {
-    for (const auto& e : edges) {
-        Mix(h, &e.a, sizeof(e.a));
-        Mix(h, &e.b, sizeof(e.b));
-        Mix(h, e.T_a_b.matrix().data(), sizeof(double) * 16);
-        Mix(h, &e.kappa, sizeof(e.kappa));
-        Mix(h, &e.tau, sizeof(e.tau));
-    }
-}
+constexpr std::size_t kHistory = 16;               ///< distinct bundles kept per robot for rounds
+constexpr std::size_t kMaxEarlyMessages = 100000;  ///< buffered messages of rounds not begun
+constexpr int kBlock = 4;                          ///< columns per pose (d + 1, d = 3)
 
 }  // namespace
-
-std::uint64_t CertifierActor::Digest(const Bundle& b) {
-    std::uint64_t h = 14695981039346656037ull;
-    const int phase = b.status.phase();
-    Mix(&h, &phase, sizeof(phase));
-    for (const auto& id : b.block.ids) Mix(&h, &id, sizeof(id));
-    const Eigen::Index dims[2] = {b.block.blocks.rows(), b.block.blocks.cols()};
-    Mix(&h, dims, sizeof(dims));
-    Mix(&h, b.block.blocks.data(),
-        sizeof(double) * static_cast<std::size_t>(b.block.blocks.size()));
-    MixEdges(&h, b.edges);
-    return h;
-}
-
-std::uint64_t CertifierActor::GraphDigest(const Bundle& b) {
-    std::uint64_t h = 14695981039346656037ull;
-    for (const auto& id : b.block.ids) Mix(&h, &id, sizeof(id));
-    const Eigen::Index rank = b.block.blocks.rows();
-    Mix(&h, &rank, sizeof(rank));
-    MixEdges(&h, b.edges);
-    return h;
-}
 
 bool CertifierActor::SettledSinceCertified() const {
     // The certified round proved f* >= tr(Lambda) - eta d n for its graph; that bound holds for
@@ -165,7 +130,7 @@ void CertifierActor::SubscribeBundles() {
         if (it == pending_.end()) return true;  // joined mid-bundle (or an escape): wait
         count(m, proto->header().robot_id());
         it->second.block = std::move(*block);
-        it->second.digest = Digest(it->second);
+        it->second.digest = BundleDigest(it->second);
         auto& recent = history_[robot];
         std::erase_if(recent, [&](const Bundle& b) { return b.digest == it->second.digest; });
         recent.push_back(it->second);
@@ -232,39 +197,6 @@ void CertifierActor::Tick() {
     }
 }
 
-bool CertifierActor::Assemble(const std::map<int, Bundle>& bundles, slam::PoseGraph* graph,
-                              Eigen::MatrixXd* X) const {
-    if (bundles.size() != Wiring().robots.size()) return false;
-    // Every robot final, at one rank, its block covering its poses.
-    std::map<int, int> offset;
-    const int rank = static_cast<int>(bundles.begin()->second.block.blocks.rows());
-    for (const auto& [robot, b] : bundles) {
-        if (b.status.phase() != v1::SolverStatus::PHASE_CONVERGED) return false;
-        if (b.block.blocks.rows() != rank || b.block.ids.size() != b.status.num_poses()) {
-            return false;
-        }
-        offset[robot] = graph->n;
-        for (const auto& id : b.block.ids) graph->ids.push_back(id);
-        graph->n += static_cast<int>(b.block.ids.size());
-    }
-    X->resize(rank, 4 * graph->n);
-    for (const auto& [robot, b] : bundles)
-        X->middleCols(4 * offset[robot], b.block.blocks.cols()) = b.block.blocks;
-    const auto index = [&](const slam::PoseId& id) -> int {
-        const auto it = bundles.find(id.robot);
-        if (it == bundles.end() || id.index >= int(it->second.block.ids.size())) return -1;
-        return offset[id.robot] + id.index;
-    };
-    for (const auto& [robot, b] : bundles) {
-        for (const auto& e : b.edges) {
-            const int i = index(e.a), j = index(e.b);
-            if (i < 0 || j < 0) return false;  // a newer bundle of the other robot is coming
-            graph->edges.push_back(slam::MeasurementOf(e, i, j));
-        }
-    }
-    return true;
-}
-
 void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X,
                                     v1::CertificatePath path) {
     const auto Q = slam::ConnectionLaplacian(graph);
@@ -291,7 +223,7 @@ void CertifierActor::Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::M
     ++escapes_;
     int column = 0;
     for (const auto& [robot, b] : bundles) {
-        PoseBlocks blocks;
+        certify::PoseBlocks blocks;
         blocks.ids = b.block.ids;
         blocks.blocks = escaped.X.middleCols(column, b.block.blocks.cols());
         blocks.staircase_level = level_;
@@ -301,6 +233,233 @@ void CertifierActor::Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::M
         Send(*out_, transport::Pack(proto), true);
     }
     bundles_.clear();  // wait for blocks at the new rank
+}
+
+// Distributed rounds: the anchor opens them; every certifier builds its rows of S from the
+// named bundles and runs its share of Lanczos over CertificateVector/CertificateReduction.
+
+std::optional<certify::DistributedVerdict> CertifierActor::LastVerdict() const {
+    std::lock_guard lock(verdict_mutex_);
+    return verdict_;
+}
+
+void CertifierActor::SubscribeRounds() {
+    for (int r : Wiring().robots) {
+        if (r != RobotId()) OpenClient(Edge::kCertify, r);
+    }
+    On(v1::CertificateRound::descriptor()->full_name(), [this](const transport::Message& m) {
+        const auto round = transport::Unpack<v1::CertificateRound>(m);
+        if (!round) return false;
+        OnRound(*round);
+        return true;
+    });
+    for (const auto* type :
+         {v1::CertificateVector::descriptor(), v1::CertificateReduction::descriptor()}) {
+        On(type->full_name(), [this](const transport::Message& m) {
+            Deliver(m);
+            return true;
+        });
+    }
+}
+
+void CertifierActor::StartRound() {
+    v1::CertificateRound round;
+    *round.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    // Unique across anchor restarts: wall-clock milliseconds, then a counter.
+    const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                        std::chrono::system_clock::now().time_since_epoch())
+                        .count();
+    round.set_round(static_cast<std::uint64_t>(ms) * 1000 + (++rounds_opened_ % 1000));
+    round.set_rank_r(static_cast<std::uint32_t>(bundles_.begin()->second.block.blocks.rows()));
+    std::map<int, std::set<int>> neighbors;  // robots sharing an edge
+    for (const auto& [robot, b] : bundles_) {
+        for (const auto& e : b.edges) {
+            if (e.a.robot == e.b.robot) continue;
+            neighbors[e.a.robot].insert(e.b.robot);
+            neighbors[e.b.robot].insert(e.a.robot);
+        }
+    }
+    for (const auto& [robot, b] : bundles_) {
+        auto* ref = round.add_bundles();
+        ref->set_robot_id(static_cast<std::uint32_t>(robot));
+        ref->set_digest(b.digest);
+        for (int n : neighbors[robot]) ref->add_neighbors(static_cast<std::uint32_t>(n));
+    }
+    Send(*out_, transport::Pack(round), true);
+    round_opened_ = std::chrono::steady_clock::now();
+    OnRound(round);
+    round_sent_.insert(round_sent_.begin(), transport::Pack(round));
+}
+
+void CertifierActor::OnRound(const v1::CertificateRound& round) {
+    if (lanczos_ && round.round() == round_) return;  // a re-sent opening
+    // The anchor uses every bundle; the others their own and their neighbours' (read from now on).
+    std::set<int> needed;
+    for (const auto& ref : round.bundles()) {
+        if (int(ref.robot_id()) != RobotId()) continue;
+        needed.insert(RobotId());
+        for (const auto n : ref.neighbors()) needed.insert(int(n));
+    }
+    for (int r : needed) ReadBundlesOf(r);
+    std::map<int, const Bundle*> chosen;
+    for (const auto& ref : round.bundles()) {
+        if (!anchor_ && !needed.count(int(ref.robot_id()))) continue;
+        const Bundle* b = nullptr;
+        for (const auto& candidate : history_[int(ref.robot_id())]) {
+            if (candidate.digest == ref.digest()) b = &candidate;
+        }
+        if (b == nullptr) {  // not here yet (or never: the anchor will open another round)
+            waiting_ = round;
+            return;
+        }
+        chosen[int(ref.robot_id())] = b;
+    }
+    waiting_.reset();
+    if (!chosen.count(RobotId())) return;
+    const Bundle& own = *chosen.at(RobotId());
+    const RoundShare share = ShareOf(RobotId(), chosen);
+    round_edges_ = share.round_edges;
+    certify::LocalCertificateProblem problem;
+    if (!certify::MakeLocalProblem(RobotId(), own.block.ids, own.block.blocks, share.edges,
+                                   share.far, &problem)) {
+        return;  // a far end outside its robot's block: the anchor retries with newer bundles
+    }
+    round_ = round.round();
+    round_rank_ = round.rank_r();
+    round_bundles_.clear();
+    if (anchor_) {  // its report, a cross-check and an escape are about this round's graph
+        for (const auto& [robot, b] : chosen) round_bundles_[robot] = *b;
+    }
+    round_progress_ = std::chrono::steady_clock::now();
+    round_heard_ = false;
+    round_sent_.clear();
+    const auto send_vector = [this](int step, const std::vector<slam::PoseId>& ids,
+                                    const Eigen::VectorXd& values) {
+        v1::CertificateVector v;
+        *v.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+        v.set_round(round_);
+        v.set_step(static_cast<std::uint32_t>(step));
+        v.set_block_size(kBlock);
+        for (const auto& id : ids) *v.add_pose_ids() = ToProto(id);
+        v.mutable_values()->Add(values.data(), values.data() + values.size());
+        Send(*out_, transport::Pack(v), true);
+        RememberSent(&round_sent_, transport::Pack(v));
+    };
+    const auto send_reduction = [this](int step, int stage, const std::vector<double>& values) {
+        v1::CertificateReduction r;
+        *r.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+        r.set_round(round_);
+        r.set_step(static_cast<std::uint32_t>(step));
+        r.set_stage(static_cast<std::uint32_t>(stage));
+        r.mutable_values()->Add(values.begin(), values.end());
+        Send(*out_, transport::Pack(r), true);
+        RememberSent(&round_sent_, transport::Pack(r));
+    };
+    lanczos_ = std::make_unique<certify::LanczosParticipant>(
+        std::move(problem), Wiring().robots, round_, config_.lanczos, send_vector, send_reduction);
+    lanczos_->Begin();
+    auto early = std::move(early_[round_]);
+    early_.clear();
+    for (const auto& m : early) Deliver(m);
+    RoundFinished();
+}
+
+void CertifierActor::Deliver(const transport::Message& m) {
+    std::uint64_t round = 0;
+    const auto vector =
+        m.Is<v1::CertificateVector>() ? transport::Unpack<v1::CertificateVector>(m) : std::nullopt;
+    const auto reduction = m.Is<v1::CertificateReduction>()
+                               ? transport::Unpack<v1::CertificateReduction>(m)
+                               : std::nullopt;
+    if (vector) round = vector->round();
+    if (reduction) round = reduction->round();
+    if (round == 0) return;
+    if (round != round_ || !lanczos_) {
+        std::size_t buffered = 0;
+        for (const auto& [id, list] : early_) buffered += list.size();
+        if (buffered < kMaxEarlyMessages) early_[round].push_back(m);
+        return;
+    }
+    if (lanczos_->Done()) return;
+    round_progress_ = std::chrono::steady_clock::now();
+    round_heard_ = true;
+    if (vector) {
+        std::vector<slam::PoseId> ids;
+        for (const auto& id : vector->pose_ids()) {
+            const auto pose = FromProto(id);
+            if (!pose) return;
+            ids.push_back(*pose);
+        }
+        const Eigen::VectorXd values = Eigen::Map<const Eigen::VectorXd>(
+            vector->values().data(), static_cast<Eigen::Index>(vector->values_size()));
+        lanczos_->OnVector(int(vector->header().robot_id()), int(vector->step()), ids, values);
+    } else {
+        lanczos_->OnReduction(int(reduction->header().robot_id()), int(reduction->step()),
+                              int(reduction->stage()),
+                              {reduction->values().begin(), reduction->values().end()});
+    }
+    RoundFinished();
+}
+
+void CertifierActor::ResendIfStalled() {
+    const auto now = std::chrono::steady_clock::now();
+    if (!lanczos_ || lanczos_->Done() || now - round_progress_ < config_.round_resend ||
+        now - round_resent_ < config_.round_resend) {
+        return;
+    }
+    // Receivers take a message twice without harm (the same values overwrite the same slot).
+    for (const auto& m : round_sent_) Send(*out_, m, true);
+    round_resent_ = now;
+}
+
+void CertifierActor::RoundFinished() {
+    if (!lanczos_ || !lanczos_->Done()) return;
+    certify::DistributedVerdict verdict = lanczos_->Verdict();
+    {
+        std::lock_guard lock(verdict_mutex_);
+        if (verdict_ && verdict_->round == verdict.round) return;  // already counted
+    }
+    slam::PoseGraph graph;
+    Eigen::MatrixXd X;
+    const bool assembled = anchor_ &&
+                           (config_.cross_check ||
+                            verdict.status == certify::DistributedVerdict::Status::kNotCertified) &&
+                           Assemble(round_bundles_, &graph, &X);
+    std::optional<certify::CertificateResult> central;
+    if (assembled && config_.cross_check) {
+        central = certify::Certify(slam::ConnectionLaplacian(graph), X, 3, config_.certificate);
+        verdict.central_lambda_min = central->lambda_min;
+    }
+    {
+        std::lock_guard lock(verdict_mutex_);
+        verdict_ = verdict;
+    }
+    ++rounds_;
+    ++checks_;
+    lanczos_steps_ += static_cast<std::uint64_t>(verdict.steps);
+    if (!anchor_) return;
+    NoteVerdict(verdict.status == certify::DistributedVerdict::Status::kCertified, round_bundles_);
+    v1::CertificateReport report;
+    *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    report.set_verdict(VerdictOf(verdict.status));
+    report.set_lambda_min(verdict.lambda_min);
+    report.set_eps_tolerance(verdict.eta);
+    report.set_duality_gap(verdict.cost - verdict.dual_value);
+    report.set_objective(verdict.cost);
+    report.set_rank_r(round_rank_);
+    report.set_iteration(round_edges_);  // which graph: its edge count
+    report.set_path(v1::CERTIFICATE_PATH_DISTRIBUTED);
+    Send(*out_, transport::Pack(report), true);
+    if (verdict.status != certify::DistributedVerdict::Status::kNotCertified ||
+        level_ >= config_.max_staircase_steps || !assembled) {
+        return;
+    }
+    // The escape stays centralised: the anchor computes the eigenvector on the round's graph.
+    const auto Q = slam::ConnectionLaplacian(graph);
+    if (!central) central = certify::Certify(Q, X, 3, config_.certificate);
+    if (central->status == certify::CertificateResult::Status::kNotOptimal) {
+        Escape(Q, X, central->eigenvector, central->gradient_tolerance, round_bundles_);
+    }
 }
 
 }  // namespace certislam::actors

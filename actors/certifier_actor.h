@@ -16,10 +16,11 @@
 #include <set>
 #include <vector>
 
-#include "actors/certifier_actor_lanczos.h"
+#include "actors/certifier_bundles.h"
 #include "actors/convert.h"
 #include "actors/node_actor.h"
 #include "certify/certificate.h"
+#include "certify/distributed/distributed_lanczos.h"
 #include "certislam/v1/rbcd.pb.h"
 
 namespace certislam::actors {
@@ -30,13 +31,14 @@ struct CertifierConfig {
     int max_staircase_steps = 3;             ///< saddle escapes at most, >= 0
     std::chrono::milliseconds period{200};   ///< checks at most this often, > 0
     bool distributed = true;  ///< every robot's rows of S, S*v between neighbours; false: anchor
-    LanczosSettings lanczos;  ///< the distributed eigen-solver
+    certify::LanczosSettings lanczos;               ///< the distributed eigen-solver
     std::chrono::milliseconds round_timeout{5000};  ///< a round silent this long: the anchor
                                                     ///< checks that graph centrally
     std::chrono::milliseconds round_resend{500};    ///< a round silent this long: last messages
                                                     ///< re-sent (a peer may have joined late)
-    bool cross_check = false;  ///< anchor, distributed: also checks every round's graph
-                               ///< centrally (DistributedVerdict::central_lambda_min; tests)
+    bool cross_check =
+        false;  ///< anchor, distributed: also checks every round's graph
+                ///< centrally (certify::DistributedVerdict::central_lambda_min; tests)
     /// After a certified verdict no new check opens while the graph (every edge), the rank and
     /// the pose ids are those certified and no robot's block moved more than this, relative to
     /// the block's Frobenius norm, from its certified value (the certified lower bound on f*
@@ -73,21 +75,14 @@ class CertifierActor final : public NodeActor {
     /// (CertifierConfig::settled_move_relative).
     int SettledSkips() const { return skipped_.load(); }
     /// The verdict of the last distributed round this robot finished (thread-safe).
-    std::optional<DistributedVerdict> LastVerdict() const;
+    std::optional<certify::DistributedVerdict> LastVerdict() const;
 
   protected:
     void OnStart() override;
     void OnStop() override { CloseEndpoints(); }
 
   private:
-    struct Bundle {
-        v1::SolverStatus status;
-        std::vector<slam::LoopClosure> edges;
-        PoseBlocks block;
-        std::uint64_t digest = 0;  ///< hash of the contents (equal for re-sent copies)
-    };
-    static std::uint64_t Digest(const Bundle& b);
-    static std::uint64_t GraphDigest(const Bundle& b);
+    using Bundle = CertifierBundle;
     bool SettledSinceCertified() const;
     void NoteVerdict(bool certified, const std::map<int, Bundle>& bundles);
     void SubscribeBundles();
@@ -97,13 +92,15 @@ class CertifierActor final : public NodeActor {
         return Assemble(bundles_, graph, X);
     }
     bool Assemble(const std::map<int, Bundle>& bundles, slam::PoseGraph* graph,
-                  Eigen::MatrixXd* X) const;
+                  Eigen::MatrixXd* X) const {
+        return AssembleBundles(bundles, Wiring().robots.size(), graph, X);
+    }
     void CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X,
                         v1::CertificatePath path);
     void Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
                 const Eigen::VectorXd& v, double gradient_tolerance,
                 const std::map<int, Bundle>& bundles);
-    // Distributed rounds (certifier_actor_rounds.cpp).
+    // Distributed rounds.
     void SubscribeRounds();
     void StartRound();
     void OnRound(const v1::CertificateRound& round);
@@ -114,16 +111,16 @@ class CertifierActor final : public NodeActor {
     CertifierConfig config_;
     bool anchor_ = false;
     transport::Endpoint* out_ = nullptr;
-    std::map<int, Bundle> pending_;                ///< bundles being received
-    std::map<int, Bundle> bundles_;                ///< last complete bundle per robot
-    std::map<int, std::vector<Bundle>> history_;   ///< recent distinct bundles, newest last
-    std::map<int, Bundle> round_bundles_;          ///< anchor: the bundles of the round
-    std::set<int> bundle_streams_;                 ///< robots whose bundle stream it reads
-    std::unique_ptr<LanczosParticipant> lanczos_;  ///< the round in progress
-    std::uint64_t round_ = 0;                      ///< its id
-    std::uint64_t round_edges_ = 0;                ///< edges of its graph
-    std::uint32_t round_rank_ = 0;                 ///< its relaxation rank
-    std::uint64_t rounds_opened_ = 0;              ///< anchor: rounds opened
+    std::map<int, Bundle> pending_;               ///< bundles being received
+    std::map<int, Bundle> bundles_;               ///< last complete bundle per robot
+    std::map<int, std::vector<Bundle>> history_;  ///< recent distinct bundles, newest last
+    std::map<int, Bundle> round_bundles_;         ///< anchor: the bundles of the round
+    std::set<int> bundle_streams_;                ///< robots whose bundle stream it reads
+    std::unique_ptr<certify::LanczosParticipant> lanczos_;    ///< the round in progress
+    std::uint64_t round_ = 0;                                 ///< its id
+    std::uint64_t round_edges_ = 0;                           ///< edges of its graph
+    std::uint32_t round_rank_ = 0;                            ///< its relaxation rank
+    std::uint64_t rounds_opened_ = 0;                         ///< anchor: rounds opened
     std::chrono::steady_clock::time_point round_progress_{};  ///< last message of the round
     std::chrono::steady_clock::time_point round_opened_{};    ///< anchor: when it opened
     bool round_heard_ = false;  ///< a message of another robot for the round arrived
@@ -137,7 +134,7 @@ class CertifierActor final : public NodeActor {
     std::atomic<int> fallbacks_{0};
     std::atomic<std::uint64_t> bundle_bytes_{0};
     mutable std::mutex verdict_mutex_;
-    std::optional<DistributedVerdict> verdict_;
+    std::optional<certify::DistributedVerdict> verdict_;
     bool dirty_ = false;
     /// anchor: the bundles of the last verdict when it was certified (empty otherwise)
     std::map<int, Bundle> certified_bundles_;

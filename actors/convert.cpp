@@ -295,7 +295,7 @@ std::optional<slam::LoopClosure> FromProto(const v1::LoopClosure& loop) {
     return out;
 }
 
-v1::PublicPoses ToProto(const PoseBlocks& poses) {
+v1::PublicPoses ToProto(const certify::PoseBlocks& poses) {
     v1::PublicPoses out;
     out.set_iteration(poses.iteration);
     out.set_rank_r(static_cast<std::uint32_t>(poses.blocks.rows()));
@@ -307,13 +307,13 @@ v1::PublicPoses ToProto(const PoseBlocks& poses) {
     return out;
 }
 
-std::optional<PoseBlocks> FromProto(const v1::PublicPoses& poses) {
+std::optional<certify::PoseBlocks> FromProto(const v1::PublicPoses& poses) {
     const std::uint32_t r = poses.rank_r();
     if (poses.dimension_d() != 3 || r < 3 || r > 64) return std::nullopt;
     const auto count = static_cast<std::size_t>(poses.pose_ids_size());
     if (static_cast<std::size_t>(poses.blocks_size()) != count * r * 4) return std::nullopt;
     if (!AllFinite(poses.blocks())) return std::nullopt;
-    PoseBlocks out;
+    certify::PoseBlocks out;
     for (const auto& id : poses.pose_ids()) {
         const auto parsed = FromProto(id);
         if (!parsed) return std::nullopt;
@@ -350,6 +350,60 @@ v1::CertificateReport ToProto(const certify::CertificateResult& result, std::uin
     out.set_objective(result.objective);
     out.set_rank_r(rank);
     return out;
+}
+
+v1::LoopClosure LoopWithdrawal(const slam::PoseId& a, const slam::PoseId& b) {
+    v1::LoopClosure out;
+    *out.mutable_pose_a() = ToProto(a);
+    *out.mutable_pose_b() = ToProto(b);
+    *out.mutable_t_a_b() = ToProto(Eigen::Isometry3d::Identity());
+    out.mutable_information()->set_kappa(0.0);
+    out.mutable_information()->set_tau(0.0);
+    return out;
+}
+
+std::optional<std::pair<slam::PoseId, slam::PoseId>> WithdrawnEnds(const v1::LoopClosure& loop) {
+    if (loop.information().kappa() != 0.0 || loop.information().tau() != 0.0) return std::nullopt;
+    const auto a = FromProto(loop.pose_a());
+    const auto b = FromProto(loop.pose_b());
+    if (!a || !b || *a == *b) return std::nullopt;
+    return std::make_pair(*a, *b);
+}
+
+v1::TrajectoryUpdate TrajectoryToProto(int robot, const std::vector<Eigen::Isometry3d>& poses,
+                                       bool certified, std::uint64_t iteration) {
+    v1::TrajectoryUpdate out;
+    out.set_iteration(iteration);
+    out.set_certified(certified);
+    for (size_t k = 0; k < poses.size(); ++k) {
+        *out.add_pose_ids() = ToProto(slam::PoseId{robot, static_cast<int>(k)});
+        *out.add_t_world_base() = ToProto(poses[k]);
+    }
+    return out;
+}
+
+std::optional<std::map<slam::PoseId, Eigen::Isometry3d>> TrajectoryFromProto(
+    const v1::TrajectoryUpdate& update) {
+    if (update.pose_ids_size() != update.t_world_base_size()) return std::nullopt;
+    std::map<slam::PoseId, Eigen::Isometry3d> out;
+    for (int k = 0; k < update.pose_ids_size(); ++k) {
+        const auto id = FromProto(update.pose_ids(k));
+        const auto T = FromProto(update.t_world_base(k));
+        if (!id || !T) return std::nullopt;
+        out[*id] = *T;
+    }
+    return out;
+}
+
+v1::CertificateVerdict VerdictOf(certify::DistributedVerdict::Status status) {
+    switch (status) {
+        case certify::DistributedVerdict::Status::kCertified:
+            return v1::CERTIFICATE_VERDICT_CERTIFIED;
+        case certify::DistributedVerdict::Status::kNotCertified:
+            return v1::CERTIFICATE_VERDICT_NOT_CERTIFIED;
+        default:
+            return v1::CERTIFICATE_VERDICT_INCONCLUSIVE;
+    }
 }
 
 }  // namespace certislam::actors

@@ -6,10 +6,14 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <map>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "certify/certificate.h"
+#include "certify/distributed/distributed_lanczos.h"
+#include "certify/pipeline/solver_state.h"
 #include "certislam/v1/certificate.pb.h"
 #include "certislam/v1/keyframe.pb.h"
 #include "certislam/v1/loop_closure.pb.h"
@@ -76,22 +80,31 @@ v1::LoopClosure ToProto(const slam::LoopClosure& loop);
 /// A loop closure back; nullopt when ids or pose are malformed or weights are not > 0.
 std::optional<slam::LoopClosure> FromProto(const v1::LoopClosure& loop);
 
-/// Lifted poses of some pose ids: what RBCD solvers exchange.
-struct PoseBlocks {
-    std::vector<slam::PoseId> ids;  ///< one per block
-    Eigen::MatrixXd blocks;         ///< r x (d+1)|ids|, block k = [Y_k p_k]
-    std::uint64_t iteration = 0;    ///< sender's RBCD iteration
-    int staircase_level = 0;        ///< sender's saddle escapes so far
-};
+/// A withdrawal of the loop (a, b) on the wire: a LoopClosure with both ids, identity T_a_b and
+/// zero weights (kappa = tau = 0, which no accepted loop has). Like an accepted loop sent by a
+/// matcher, its header's stamp_ns is the matcher's verdict version (increasing; a solver's
+/// re-broadcast of a loop carries 0): a receiver applies only the newest verdict per loop.
+v1::LoopClosure LoopWithdrawal(const slam::PoseId& a, const slam::PoseId& b);
+/// The ends (a, b) of a withdrawal message; nullopt when `loop` is not one.
+std::optional<std::pair<slam::PoseId, slam::PoseId>> WithdrawnEnds(const v1::LoopClosure& loop);
 
 /// Public poses on the wire (d = 3).
-v1::PublicPoses ToProto(const PoseBlocks& poses);
+v1::PublicPoses ToProto(const certify::PoseBlocks& poses);
 /// Public poses back; nullopt unless d = 3, 3 <= r <= 64 and the value count matches.
-std::optional<PoseBlocks> FromProto(const v1::PublicPoses& poses);
+std::optional<certify::PoseBlocks> FromProto(const v1::PublicPoses& poses);
+
+/// Poses of one robot's keyframes in its solver's (anchor robot's) frame, on the wire.
+v1::TrajectoryUpdate TrajectoryToProto(int robot, const std::vector<Eigen::Isometry3d>& poses,
+                                       bool certified, std::uint64_t iteration);
+/// Pose id -> pose of a TrajectoryUpdate; nullopt when the lists disagree or a pose is malformed.
+std::optional<std::map<slam::PoseId, Eigen::Isometry3d>> TrajectoryFromProto(
+    const v1::TrajectoryUpdate& update);
 
 /// A certificate's verdict and quantities as a report.
 v1::CertificateReport ToProto(const certify::CertificateResult& result, std::uint32_t rank);
 /// The verdict a certificate status maps to.
 v1::CertificateVerdict VerdictOf(certify::CertificateResult::Status status);
+/// The verdict a distributed round's status maps to.
+v1::CertificateVerdict VerdictOf(certify::DistributedVerdict::Status status);
 
 }  // namespace certislam::actors

@@ -2,7 +2,7 @@
 #include "actors/descriptor_actor.h"
 
 #include "actors/convert.h"
-#include "actors/ingest_actor.h"
+#include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
 
 namespace certislam::actors {

@@ -6,12 +6,10 @@
 #include <vector>
 
 #include "actors/node_actor.h"
+#include "actors/streams.h"
 #include "slam/frontend/scan_context.h"
 
 namespace certislam::actors {
-
-/// Reason string of the Shutdown that ends a descriptor stream.
-inline constexpr const char* kEndOfDescriptors = "end of descriptors";
 
 /// Keyframe -> ScanContextDescriptor.
 class DescriptorActor final : public NodeActor {

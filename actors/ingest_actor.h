@@ -12,15 +12,13 @@
 
 #include "actors/durable_log.h"
 #include "actors/node_actor.h"
+#include "actors/streams.h"
 #include "slam/core/keyframe.h"
 
 namespace certislam::actors {
 
 /// The next keyframe of this robot, or nullopt at the end of the data.
 using KeyframeSource = std::function<std::optional<slam::Keyframe>()>;
-
-/// Reason string of the Shutdown that ends the keyframe stream.
-inline constexpr const char* kEndOfKeyframes = "end of keyframes";
 
 /// Settings of the ingest actor.
 struct IngestConfig {

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "actors/convert.h"
-#include "actors/descriptor_actor.h"
+#include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
 #include "slam/frontend/downsample.h"
 
@@ -42,24 +42,6 @@ void LoopMatcherConfig::Validate() const {
     Require(place_window >= 0, "place_window", place_window, "must be >= 0");
     pcm.Validate();
     registration.Validate();
-}
-
-v1::LoopClosure LoopWithdrawal(const slam::PoseId& a, const slam::PoseId& b) {
-    v1::LoopClosure out;
-    *out.mutable_pose_a() = ToProto(a);
-    *out.mutable_pose_b() = ToProto(b);
-    *out.mutable_t_a_b() = ToProto(Eigen::Isometry3d::Identity());
-    out.mutable_information()->set_kappa(0.0);
-    out.mutable_information()->set_tau(0.0);
-    return out;
-}
-
-std::optional<std::pair<slam::PoseId, slam::PoseId>> WithdrawnEnds(const v1::LoopClosure& loop) {
-    if (loop.information().kappa() != 0.0 || loop.information().tau() != 0.0) return std::nullopt;
-    const auto a = FromProto(loop.pose_a());
-    const auto b = FromProto(loop.pose_b());
-    if (!a || !b || *a == *b) return std::nullopt;
-    return std::make_pair(*a, *b);
 }
 
 LoopMatcherActor::LoopMatcherActor(zmq::context_t& context, TeamWiring wiring,
@@ -106,7 +88,7 @@ void LoopMatcherActor::OnStart() {
 void LoopMatcherActor::OnOwnKeyframe(const slam::Keyframe& keyframe) {
     own_clouds_[keyframe.index] = keyframe.cloud;
     if (own_odometry_.count(keyframe.index)) return;
-    KeyframeOdometry odometry{keyframe.T_odom_sensor, 0.0};
+    slam::KeyframeOdometry odometry{keyframe.T_odom_sensor, 0.0};
     if (const auto before = own_odometry_.find(keyframe.index - 1); before != own_odometry_.end()) {
         odometry.travelled_m =
             before->second.travelled_m +

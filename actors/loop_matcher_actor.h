@@ -16,19 +16,17 @@
 #include <utility>
 #include <vector>
 
-#include "actors/loop_matcher_actor_pcm.h"
 #include "actors/node_actor.h"
+#include "actors/streams.h"
 #include "certislam/v1/loop_closure.pb.h"
 #include "slam/core/loop_closure.h"
 #include "slam/frontend/cloud_request_gate.h"
+#include "slam/frontend/incremental_pcm.h"
 #include "slam/frontend/pcm.h"
 #include "slam/frontend/registration.h"
 #include "slam/frontend/scan_context.h"
 
 namespace certislam::actors {
-
-/// Reason string of the Shutdown a matcher sends when it will find no more loops.
-inline constexpr const char* kEndOfLoops = "end of loops";
 
 /// Settings of the loop matcher.
 struct LoopMatcherConfig {
@@ -50,14 +48,6 @@ struct LoopMatcherConfig {
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
 };
-
-/// A withdrawal of the loop (a, b) on the wire: a LoopClosure with both ids, identity T_a_b and
-/// zero weights (kappa = tau = 0, which no accepted loop has). Like an accepted loop sent by a
-/// matcher, its header's stamp_ns is the matcher's verdict version (increasing; a solver's
-/// re-broadcast of a loop carries 0): a receiver applies only the newest verdict per loop.
-v1::LoopClosure LoopWithdrawal(const slam::PoseId& a, const slam::PoseId& b);
-/// The ends (a, b) of a withdrawal message; nullopt when `loop` is not one.
-std::optional<std::pair<slam::PoseId, slam::PoseId>> WithdrawnEnds(const v1::LoopClosure& loop);
 
 /// Scan Context + registration loop closures, inter-robot cloud exchange on request.
 class LoopMatcherActor final : public NodeActor {
@@ -120,8 +110,8 @@ class LoopMatcherActor final : public NodeActor {
     std::map<int, std::set<int>> received_;  ///< robot -> keyframe indices described to us
     std::map<int, std::uint64_t> end_counts_;  ///< robot -> descriptors its end marker counted
     std::uint64_t next_request_ = 0;
-    std::map<int, KeyframeOdometry> own_odometry_;  ///< own keyframe -> odometry
-    IncrementalPcm pcm_;
+    std::map<int, slam::KeyframeOdometry> own_odometry_;  ///< own keyframe -> odometry
+    slam::IncrementalPcm pcm_;
     bool pcm_dirty_ = false;  ///< a loop was verified since the last Reconcile()
     std::map<std::pair<slam::PoseId, slam::PoseId>, slam::LoopClosure> sent_;  ///< accepted now
     std::int64_t last_version_ = 0;

@@ -12,7 +12,7 @@
 #include <string_view>
 
 #include "actors/convert.h"
-#include "actors/ingest_actor.h"
+#include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
 #include "certislam/v1/map.pb.h"
 #include "slam/core/check.h"
@@ -72,31 +72,6 @@ void MapperConfig::Validate() const {
             "MapperConfig.active_submap_quiet = " + std::to_string(active_submap_quiet.count()) +
             " ms: must be >= 0");
     }
-}
-
-v1::TrajectoryUpdate TrajectoryToProto(int robot, const std::vector<Eigen::Isometry3d>& poses,
-                                       bool certified, std::uint64_t iteration) {
-    v1::TrajectoryUpdate out;
-    out.set_iteration(iteration);
-    out.set_certified(certified);
-    for (size_t k = 0; k < poses.size(); ++k) {
-        *out.add_pose_ids() = ToProto(slam::PoseId{robot, static_cast<int>(k)});
-        *out.add_t_world_base() = ToProto(poses[k]);
-    }
-    return out;
-}
-
-std::optional<std::map<slam::PoseId, Eigen::Isometry3d>> TrajectoryFromProto(
-    const v1::TrajectoryUpdate& update) {
-    if (update.pose_ids_size() != update.t_world_base_size()) return std::nullopt;
-    std::map<slam::PoseId, Eigen::Isometry3d> out;
-    for (int k = 0; k < update.pose_ids_size(); ++k) {
-        const auto id = FromProto(update.pose_ids(k));
-        const auto T = FromProto(update.t_world_base(k));
-        if (!id || !T) return std::nullopt;
-        out[*id] = *T;
-    }
-    return out;
 }
 
 MapperActor::MapperActor(zmq::context_t& context, TeamWiring wiring, MapperConfig config)

@@ -49,13 +49,6 @@ struct MapperConfig {
     void Validate() const;
 };
 
-/// Poses of one robot's keyframes in its solver's (anchor robot's) frame, on the wire.
-v1::TrajectoryUpdate TrajectoryToProto(int robot, const std::vector<Eigen::Isometry3d>& poses,
-                                       bool certified, std::uint64_t iteration);
-/// Pose id -> pose of a TrajectoryUpdate; nullopt when the lists disagree or a pose is malformed.
-std::optional<std::map<slam::PoseId, Eigen::Isometry3d>> TrajectoryFromProto(
-    const v1::TrajectoryUpdate& update);
-
 /// What the mapper has done so far (a copy; thread-safe to take).
 struct MapperStats {
     int integrated = 0;                   ///< own keyframes fused

@@ -4,9 +4,7 @@
 #include <stdexcept>
 
 #include "actors/convert.h"
-#include "actors/ingest_actor.h"
-#include "actors/loop_matcher_actor.h"
-#include "actors/mapper_actor.h"
+#include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
 
 namespace certislam::actors {
@@ -175,13 +173,13 @@ void SolverActor::Tick() {
     if (!work_ || state_.NumPoses() == 0) return;
     double team_cost = 0.0;
     for (const auto& [robot, cost] : team_cost_) team_cost += robot == RobotId() ? 0.0 : cost;
-    const SolverStepResult step = state_.Step(team_cost + team_cost_[RobotId()]);
+    const certify::SolverStepResult step = state_.Step(team_cost + team_cost_[RobotId()]);
     ++steps_;
     team_cost_[RobotId()] = step.cost;
     grad_norm_ = step.grad_norm;
-    local_ok_ = step.status == SolverStepResult::Status::kLocalOk;
+    local_ok_ = step.status == certify::SolverStepResult::Status::kLocalOk;
     // Converged against the last poses heard: wait for news instead of spinning.
-    work_ = !local_ok_ && step.status != SolverStepResult::Status::kStuck;
+    work_ = !local_ok_ && step.status != certify::SolverStepResult::Status::kStuck;
     // A step that moved the block is published (within publish_period) even when it ends below
     // tolerance: otherwise the team's last refinements travel only with the heartbeat.
     if (!local_ok_ || step.moved) bundle_dirty_ = true;
@@ -253,7 +251,7 @@ void SolverActor::SendBundle() {
     }
     // After the bundle: the rounded trajectory for the mapper (the certifier ignores it).
     int anchor = RobotId();
-    const auto poses = state_.Trajectory(ComponentAnchor(RobotId(), team_loops_), &anchor);
+    const auto poses = state_.Trajectory(certify::ComponentAnchor(RobotId(), team_loops_), &anchor);
     const bool certified = report_ && report_->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
     auto trajectory = TrajectoryToProto(RobotId(), poses, certified, steps_);
     *trajectory.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
@@ -273,7 +271,8 @@ void SolverActor::UpdateSnapshot() {
     s.rank = state_.Rank();
     s.staircase_level = state_.StaircaseLevel();
     s.inter_robot_loops = static_cast<int>(state_.InterRobotLoops().size());
-    const auto poses = state_.Trajectory(ComponentAnchor(RobotId(), team_loops_), &s.anchor);
+    const auto poses =
+        state_.Trajectory(certify::ComponentAnchor(RobotId(), team_loops_), &s.anchor);
     for (size_t i = 0; i < poses.size(); ++i) {
         s.trajectory.push_back({static_cast<double>(stamps_ns_[i]) * 1e-9, poses[i]});
     }

@@ -15,7 +15,7 @@
 
 #include "actors/durable_log.h"
 #include "actors/node_actor.h"
-#include "actors/solver_state.h"
+#include "certify/pipeline/solver_state.h"
 #include "certislam/v1/certificate.pb.h"
 #include "slam/core/trajectory.h"
 
@@ -23,7 +23,7 @@ namespace certislam::actors {
 
 /// Settings of the solver actor.
 struct SolverActorConfig {
-    SolverConfig solver;                           ///< RBCD settings
+    certify::SolverConfig solver;                  ///< RBCD settings
     std::chrono::milliseconds tick{2};             ///< a block update at most this often, > 0
     std::chrono::milliseconds heartbeat{200};      ///< poses, status, loops re-sent this often
     std::chrono::milliseconds bundle_period{300};  ///< converged block to the certifier, > 0
@@ -82,7 +82,7 @@ class SolverActor final : public NodeActor {
     void Changed();
 
     SolverActorConfig config_;
-    SolverState state_;
+    certify::SolverState state_;
     transport::Endpoint* poses_out_ = nullptr;
     transport::Endpoint* bundle_out_ = nullptr;
     std::vector<std::int64_t> stamps_ns_;

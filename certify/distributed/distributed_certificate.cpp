@@ -1,80 +1,18 @@
-// Robot-held rows of S and a Lanczos iteration whose products exchange only public entries.
+// Robot-held rows of S: built from the joint Q and X, or from one robot's view of the graph.
 #include "certify/distributed/distributed_certificate.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <random>
-#include <stdexcept>
-#include <string>
 
+#include "slam/backend/connection_laplacian.h"
 #include "slam/core/check.h"
 
 namespace certislam::certify {
 namespace {
 
-using Segments = std::vector<Eigen::VectorXd>;
-
-constexpr double kBreakdown = 1e-300;  ///< beta below this: the Krylov space is invariant
-
-double Dot(const Segments& a, const Segments& b) {
-    double s = 0.0;
-    for (size_t k = 0; k < a.size(); ++k) s += a[k].dot(b[k]);
-    return s;
-}
-
-void Axpy(double alpha, const Segments& x, Segments* y) {
-    for (size_t k = 0; k < x.size(); ++k) (*y)[k] += alpha * x[k];
-}
-
-// The team's product S v: every robot publishes its public entries, then multiplies its rows.
-class Team {
-  public:
-    explicit Team(const std::vector<CertificateRows>& robots) : robots_(robots) {
-        for (size_t k = 0; k < robots.size(); ++k) {
-            for (size_t p = 0; p < robots[k].public_poses.size(); ++p) {
-                where_[robots[k].public_poses[p]] = {static_cast<int>(k), static_cast<int>(p)};
-            }
-        }
-    }
-
-    Segments Multiply(const Segments& v, DistributedEigenResult* stats) const {
-        Segments messages(robots_.size());
-        for (size_t k = 0; k < robots_.size(); ++k) {
-            messages[k] = PublicEntries(robots_[k], v[k]);
-            stats->entries_exchanged += static_cast<double>(messages[k].size());
-        }
-        Segments out(robots_.size());
-        for (size_t k = 0; k < robots_.size(); ++k) {
-            const CertificateRows& rows = robots_[k];
-            const int b = rows.d + 1;
-            Eigen::VectorXd nbr(b * static_cast<int>(rows.neighbor_poses.size()));
-            for (size_t p = 0; p < rows.neighbor_poses.size(); ++p) {
-                const auto [owner, index] = where_.at(rows.neighbor_poses[p]);
-                nbr.segment(b * p, b) = messages[owner].segment(b * index, b);
-            }
-            out[k] = MultiplyRows(rows, v[k], nbr);
-        }
-        ++stats->products;
-        return out;
-    }
-
-    Segments Random(std::uint64_t seed) const {
-        std::mt19937_64 rng(seed);
-        std::normal_distribution<double> normal;
-        Segments v(robots_.size());
-        for (size_t k = 0; k < robots_.size(); ++k) {
-            v[k].resize(robots_[k].own.rows());
-            for (Eigen::Index i = 0; i < v[k].size(); ++i) v[k][i] = normal(rng);
-        }
-        return v;
-    }
-
-  private:
-    const std::vector<CertificateRows>& robots_;
-    std::map<int, std::pair<int, int>> where_;  // public pose -> (robot, index in its list)
-};
+constexpr int kBlock = 4;  ///< columns per pose of a robot's local problem, d + 1 with d = 3
 
 }  // namespace
 
@@ -153,78 +91,61 @@ Eigen::VectorXd MultiplyRows(const CertificateRows& rows, const Eigen::VectorXd&
     return y;
 }
 
-void DistributedEigenConfig::Validate() const {
-    if (max_krylov < 2) {
-        throw std::invalid_argument(
-            "DistributedEigenConfig.max_krylov = " + std::to_string(max_krylov) + ": must be >= 2");
-    }
-    if (!(tolerance > 0.0)) {
-        throw std::invalid_argument(
-            "DistributedEigenConfig.tolerance = " + std::to_string(tolerance) + ": must be > 0");
-    }
-    if (check_every < 1) {
-        throw std::invalid_argument("DistributedEigenConfig.check_every = " +
-                                    std::to_string(check_every) + ": must be >= 1");
-    }
-}
-
-DistributedEigenResult DistributedMinEigenpair(const std::vector<CertificateRows>& robots,
-                                               const DistributedEigenConfig& config) {
-    config.Validate();
-    CERTISLAM_CHECK(!robots.empty());
-    DistributedEigenResult result;
-    const Team team(robots);
-    std::vector<Segments> basis;
-    Segments q = team.Random(config.seed);
-    const double norm0 = std::sqrt(Dot(q, q));
-    for (auto& s : q) s /= norm0;
-    ++result.scalar_reductions;
-    std::vector<double> alpha, beta;
-    Eigen::VectorXd ritz;  // coefficients of the Ritz vector in the basis
-    bool done = false;
-    for (int j = 0; j < config.max_krylov && !done; ++j) {
-        basis.push_back(q);
-        Segments w = team.Multiply(q, &result);
-        alpha.push_back(Dot(q, w));
-        ++result.scalar_reductions;
-        for (const Segments& u : basis) Axpy(-Dot(u, w), u, &w);  // full reorthogonalisation,
-        for (const Segments& u : basis) Axpy(-Dot(u, w), u, &w);  // twice ("twice is enough")
-        result.scalar_reductions += 2;  // each pass: all its dots in one reduction
-        const double b = std::sqrt(Dot(w, w));
-        ++result.scalar_reductions;
-        const int m = static_cast<int>(alpha.size());
-        const bool breakdown = b < kBreakdown || m == config.max_krylov;
-        if (breakdown || m % config.check_every == 0) {
-            Eigen::MatrixXd T = Eigen::MatrixXd::Zero(m, m);
-            for (int i = 0; i < m; ++i) T(i, i) = alpha[i];
-            for (int i = 0; i + 1 < m; ++i) T(i, i + 1) = T(i + 1, i) = beta[i];
-            Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(T);
-            const double scale = eig.eigenvalues().cwiseAbs().maxCoeff();
-            ritz = eig.eigenvectors().col(0);
-            result.lambda_min = eig.eigenvalues()(0);
-            const double estimate = std::abs(b * ritz(m - 1));
-            const bool converged = estimate <= config.tolerance * scale || b < kBreakdown;
-            if (converged) result.status = DistributedEigenResult::Status::kConverged;
-            done = breakdown || converged;
+bool MakeLocalProblem(int robot, const std::vector<slam::PoseId>& own_ids,
+                      const Eigen::MatrixXd& X_own, const std::vector<slam::LoopClosure>& edges,
+                      const std::map<slam::PoseId, Eigen::MatrixXd>& neighbor_blocks,
+                      LocalCertificateProblem* out) {
+    const int n = static_cast<int>(own_ids.size());
+    std::map<slam::PoseId, int> local;
+    for (int i = 0; i < n; ++i) local[own_ids[static_cast<size_t>(i)]] = i;
+    slam::PoseGraph graph;
+    graph.d = 3;
+    graph.ids = own_ids;
+    for (const auto& e : edges) {
+        for (const slam::PoseId& id : {e.a, e.b}) {
+            if (local.count(id)) continue;
+            if (!neighbor_blocks.count(id)) return false;
+            local[id] = static_cast<int>(graph.ids.size());
+            graph.ids.push_back(id);
         }
-        beta.push_back(b);
-        if (!done) {
-            for (auto& s : w) s /= b;
-            q = std::move(w);
-        }
+        graph.edges.push_back(slam::MeasurementOf(e, local.at(e.a), local.at(e.b)));
     }
-    Segments v(robots.size());
-    for (size_t k = 0; k < robots.size(); ++k) v[k] = Eigen::VectorXd::Zero(robots[k].own.rows());
-    for (Eigen::Index i = 0; i < ritz.size(); ++i) Axpy(ritz(i), basis[i], &v);
-    const double vn = std::sqrt(Dot(v, v));
-    for (auto& s : v) s /= vn;
-    Segments Sv = team.Multiply(v, &result);
-    result.lambda_min = Dot(v, Sv);
-    Axpy(-result.lambda_min, v, &Sv);
-    result.residual = std::sqrt(Dot(Sv, Sv));
-    result.scalar_reductions += 3;
-    result.vector = std::move(v);
-    return result;
+    graph.n = static_cast<int>(graph.ids.size());
+    Eigen::MatrixXd X(X_own.rows(), kBlock * graph.n);
+    X.leftCols(X_own.cols()) = X_own;
+    for (int g = n; g < graph.n; ++g) {
+        X.middleCols(kBlock * g, kBlock) = neighbor_blocks.at(graph.ids[static_cast<size_t>(g)]);
+    }
+    // Only Q's own columns are read below: they hold exactly the edges at own poses.
+    const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(graph);
+    slam::Partition partition;
+    partition.begin = {0, n, graph.n};
+    LocalCertificateProblem p;
+    p.robot = robot;
+    p.rows = MakeCertificateRows(Q, X, 3, partition, 0);
+    for (int g : p.rows.public_poses) p.public_ids.push_back(graph.ids[static_cast<size_t>(g)]);
+    Eigen::MatrixXd X_nbr(X.rows(), kBlock * p.rows.neighbor_poses.size());
+    for (size_t k = 0; k < p.rows.neighbor_poses.size(); ++k) {
+        const slam::PoseId id = graph.ids[static_cast<size_t>(p.rows.neighbor_poses[k])];
+        p.neighbor_ids.push_back(id);
+        p.neighbor_robots.insert(id.robot);
+        X_nbr.middleCols(kBlock * k, kBlock) =
+            X.middleCols(kBlock * p.rows.neighbor_poses[k], kBlock);
+    }
+    const Eigen::SparseMatrix<double> Q_own = Q.leftCols(kBlock * n);
+    const Eigen::MatrixXd XQ_own = X * Q_own;  // (X Q)[:, own columns]
+    p.cost = XQ_own.cwiseProduct(X_own).sum();
+    Eigen::MatrixXd G = p.rows.own * X_own.transpose();  // (S X^T)[own rows, :]
+    if (p.rows.nbr.cols() > 0) G += p.rows.nbr * X_nbr.transpose();
+    p.gradient_sq = 4.0 * G.squaredNorm();  // grad f = 2 X S (Riemannian at a critical point)
+    for (int c = 0; c < kBlock * n; ++c) {
+        double sum = 0.0;
+        for (Eigen::SparseMatrix<double>::InnerIterator it(Q, c); it; ++it)
+            sum += std::abs(it.value());
+        p.q_row_sum = std::max(p.q_row_sum, sum);
+    }
+    *out = std::move(p);
+    return true;
 }
 
 }  // namespace certislam::certify

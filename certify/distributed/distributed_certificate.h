@@ -1,14 +1,17 @@
-// The certificate in distributed form: each robot holds its own rows of S = Q - Lambda(X), and
-// the smallest eigenvalue is found by Lanczos whose only coupling is S*v products (each robot
-// needs its neighbours' entries of v at their public poses) and scalar sums over robots.
+// The certificate in distributed form: each robot holds its own rows of S = Q - Lambda(X), so the
+// smallest eigenvalue (distributed_lanczos.h) needs only S*v products (each robot reads its
+// neighbours' entries of v at their public poses) and scalar sums over robots.
 #pragma once
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
-#include <cstdint>
+#include <map>
+#include <set>
 #include <vector>
 
+#include "slam/core/loop_closure.h"
 #include "slam/core/partition.h"
+#include "slam/core/pose_graph.h"
 
 namespace certislam::certify {
 
@@ -39,36 +42,24 @@ Eigen::VectorXd PublicEntries(const CertificateRows& rows, const Eigen::VectorXd
 Eigen::VectorXd MultiplyRows(const CertificateRows& rows, const Eigen::VectorXd& v_own,
                              const Eigen::VectorXd& v_neighbors);
 
-/// Settings of DistributedMinEigenpair.
-struct DistributedEigenConfig {
-    int max_krylov = 400;           ///< Lanczos steps (full reorthogonalisation), >= 2
-    double tolerance = 1e-10;       ///< stop when the Ritz residual <= this * ||S|| estimate
-    int check_every = 10;           ///< Ritz values computed every this many steps, >= 1
-    std::uint64_t seed = 20261121;  ///< start vector seed
-
-    /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
-    void Validate() const;
+/// A robot's view of the joint graph for its rows of S.
+struct LocalCertificateProblem {
+    int robot = 0;                           ///< this robot
+    CertificateRows rows;                    ///< own poses first, then neighbours' (local order)
+    std::vector<slam::PoseId> public_ids;    ///< ids of rows.public_poses
+    std::vector<slam::PoseId> neighbor_ids;  ///< ids of rows.neighbor_poses
+    std::set<int> neighbor_robots;           ///< robots whose entries of v it reads
+    double cost = 0.0;                       ///< own columns' share of tr(X Q X^T)
+    double gradient_sq = 0.0;                ///< own columns' share of ||2 X S||_F^2
+    double q_row_sum = 0.0;                  ///< largest absolute row sum of Q's own rows
 };
 
-/// Result of DistributedMinEigenpair.
-struct DistributedEigenResult {
-    enum class Status {
-        kConverged,     ///< Ritz residual below tolerance
-        kNotConverged,  ///< max_krylov steps reached first (lambda is the best Ritz value)
-    };
-    Status status = Status::kNotConverged;
-    double lambda_min = 0.0;              ///< smallest Ritz value (Rayleigh quotient)
-    double residual = 0.0;                ///< ||S v - lambda v|| (global)
-    std::vector<Eigen::VectorXd> vector;  ///< the Ritz vector, one segment per robot
-    int products = 0;                     ///< S v products (one neighbour exchange each)
-    int scalar_reductions = 0;            ///< sums over robots of one or more scalars
-    double entries_exchanged = 0.0;       ///< doubles sent between robots, all products
-};
-
-/// Smallest eigenpair of S held as rows by robots: Lanczos with full reorthogonalisation, each
-/// product S v formed robot by robot from PublicEntries messages, inner products summed over
-/// robots. Plain data in and out (the system moves the messages onto the network).
-DistributedEigenResult DistributedMinEigenpair(const std::vector<CertificateRows>& robots,
-                                               const DistributedEigenConfig& config = {});
+/// Builds robot `robot`'s problem from its poses' block (`own_ids` in index order, X_own r x 4n),
+/// every edge with an end at its poses, and the neighbours' blocks at the other ends (r x 4).
+/// Returns false when an edge's far end has no block.
+bool MakeLocalProblem(int robot, const std::vector<slam::PoseId>& own_ids,
+                      const Eigen::MatrixXd& X_own, const std::vector<slam::LoopClosure>& edges,
+                      const std::map<slam::PoseId, Eigen::MatrixXd>& neighbor_blocks,
+                      LocalCertificateProblem* out);
 
 }  // namespace certislam::certify

@@ -113,7 +113,7 @@ class BundleFeeder {
             *proto.mutable_header() = MakeHeader(r, ++sequence_, 0);
             out_[r]->Send(transport::Pack(proto));
         }
-        PoseBlocks block;
+        certify::PoseBlocks block;
         for (int i = 0; i < n; ++i) block.ids.push_back({r, i});
         block.blocks = p_.X.middleCols(4 * first, 4 * n);
         auto proto = ToProto(block);
@@ -136,7 +136,7 @@ struct Case {
 class CertifierTeam : public ::testing::TestWithParam<Case> {};
 
 /// Runs the certifiers until every robot has a verdict; returns them (robot order).
-std::vector<DistributedVerdict> RunTeam(const TeamProblem& p, bool tcp) {
+std::vector<certify::DistributedVerdict> RunTeam(const TeamProblem& p, bool tcp) {
     zmq::context_t context;
     CertifierConfig config;
     config.max_staircase_steps = 0;
@@ -156,7 +156,7 @@ std::vector<DistributedVerdict> RunTeam(const TeamProblem& p, bool tcp) {
         all = true;
         for (auto& c : certifiers) all = all && c->LastVerdict().has_value();
     }
-    std::vector<DistributedVerdict> out;
+    std::vector<certify::DistributedVerdict> out;
     for (auto& c : certifiers) {
         c->Stop();
         if (c->LastVerdict()) out.push_back(*c->LastVerdict());
@@ -174,10 +174,10 @@ TEST_P(CertifierTeam, EveryRobotReachesTheCentralisedLambdaMin) {
     const auto verdicts = RunTeam(p, c.tcp);
     ASSERT_EQ(static_cast<int>(verdicts.size()), c.robots) << "a robot got no verdict";
     for (size_t r = 0; r < verdicts.size(); ++r) {
-        const DistributedVerdict& v = verdicts[r];
+        const certify::DistributedVerdict& v = verdicts[r];
         EXPECT_EQ(v.round, verdicts.front().round) << "robot " << r;
-        EXPECT_EQ(v.status, c.saddle ? DistributedVerdict::Status::kNotCertified
-                                     : DistributedVerdict::Status::kCertified)
+        EXPECT_EQ(v.status, c.saddle ? certify::DistributedVerdict::Status::kNotCertified
+                                     : certify::DistributedVerdict::Status::kCertified)
             << "robot " << r << " lambda_min " << v.lambda_min;
         EXPECT_NEAR(v.lambda_min, central.lambda_min, kLambdaTolerance * central.q_norm)
             << "robot " << r;
@@ -265,7 +265,7 @@ TEST(CertifierSettled, NoNewRoundForASettledSolutionUntilTheGraphChanges) {
         FeedFor(feeder, kResend);
     }
     ASSERT_TRUE(anchor.LastVerdict().has_value());
-    ASSERT_EQ(anchor.LastVerdict()->status, DistributedVerdict::Status::kCertified);
+    ASSERT_EQ(anchor.LastVerdict()->status, certify::DistributedVerdict::Status::kCertified);
     const int rounds = anchor.Rounds();
 
     // The solvers' blocks still creep after the verdict: new bundles, no new round.

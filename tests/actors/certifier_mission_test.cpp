@@ -85,11 +85,11 @@ TEST(CertifierMission, DistributedRoundsCertifyATwoRobotMissionInTime) {
         const auto a = certifiers[0]->LastVerdict(), b = certifiers[1]->LastVerdict();
         return a && b && a->round == b->round && a->central_lambda_min;
     })) << "the robots' last rounds differ";
-    const DistributedVerdict anchor = *certifiers[0]->LastVerdict();
-    const DistributedVerdict other = *certifiers[1]->LastVerdict();
+    const certify::DistributedVerdict anchor = *certifiers[0]->LastVerdict();
+    const certify::DistributedVerdict other = *certifiers[1]->LastVerdict();
     std::printf("last round: %d Lanczos steps, lambda_min %.3e (central %.3e), ||Q|| %.3e\n",
                 anchor.steps, anchor.lambda_min, *anchor.central_lambda_min, anchor.q_norm);
-    EXPECT_EQ(anchor.status, DistributedVerdict::Status::kCertified);
+    EXPECT_EQ(anchor.status, certify::DistributedVerdict::Status::kCertified);
     EXPECT_EQ(other.status, anchor.status);
     EXPECT_EQ(other.lambda_min, anchor.lambda_min);  // the same sums in the same order
     EXPECT_GT(anchor.q_norm, 0.0);

@@ -172,7 +172,7 @@ TEST(Convert, LoopClosureRoundTripsAndRejectsBadWeights) {
 }
 
 TEST(Convert, PublicPosesRoundTripAndRejectCountMismatch) {
-    PoseBlocks poses;
+    certify::PoseBlocks poses;
     poses.ids = {{0, 3}, {0, 9}};
     poses.blocks = Eigen::MatrixXd::Random(5, 8);
     poses.iteration = 42;

@@ -1,7 +1,8 @@
-// One robot's side of the distributed certificate over the network: its rows of S (built from
-// the edges at its poses and its neighbours' poses at their ends) and a Lanczos iteration driven
-// by messages (neighbours' public entries of v, every robot's partial sums), so that every robot
-// reaches the same lambda_min and verdict. No sockets here: the certifier actor moves the messages.
+// The distributed eigenvalue check, one implementation: a Lanczos iteration on S = Q - Lambda(X)
+// cut at every exchange, so that messages drive it (neighbours' public entries of v, every
+// robot's partial sums) and every robot reaches the same lambda_min and verdict. Plain data in
+// and out: the certifier actor moves the messages over the network, DistributedMinEigenpair
+// moves them in memory.
 #pragma once
 
 #include <Eigen/Core>
@@ -9,14 +10,13 @@
 #include <functional>
 #include <map>
 #include <optional>
-#include <set>
 #include <utility>
 #include <vector>
 
 #include "certify/distributed/distributed_certificate.h"
-#include "slam/core/loop_closure.h"
+#include "slam/core/pose_graph.h"
 
-namespace certislam::actors {
+namespace certislam::certify {
 
 /// Settings of the distributed check (the centralised check's meaning of every tolerance).
 struct LanczosSettings {
@@ -29,6 +29,9 @@ struct LanczosSettings {
     std::uint64_t seed = 20261121;              ///< start vector seed (robot id added)
     double eta_relative = 1e-7;                 ///< certified: lambda_min >= -eta_relative ||Q||
     double gradient_tolerance_relative = 1e-4;  ///< critical: ||grad|| <= this 2 sqrt(||Q|| f)
+
+    /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
+    void Validate() const;
 };
 
 /// What one robot concluded from a round (identical on every robot of the round).
@@ -57,34 +60,14 @@ struct DistributedVerdict {
     std::optional<double> central_lambda_min;
 };
 
-/// A robot's view of the joint graph for its rows of S.
-struct LocalCertificateProblem {
-    int robot = 0;                           ///< this robot
-    certify::CertificateRows rows;           ///< own poses first, then neighbours' (local order)
-    std::vector<slam::PoseId> public_ids;    ///< ids of rows.public_poses
-    std::vector<slam::PoseId> neighbor_ids;  ///< ids of rows.neighbor_poses
-    std::set<int> neighbor_robots;           ///< robots whose entries of v it reads
-    double cost = 0.0;                       ///< own columns' share of tr(X Q X^T)
-    double gradient_sq = 0.0;                ///< own columns' share of ||2 X S||_F^2
-    double q_row_sum = 0.0;                  ///< largest absolute row sum of Q's own rows
-};
-
-/// Builds robot `robot`'s problem from its poses' block (`own_ids` in index order, X_own r x 4n),
-/// every edge with an end at its poses, and the neighbours' blocks at the other ends (r x 4).
-/// Returns false when an edge's far end has no block.
-bool MakeLocalProblem(int robot, const std::vector<slam::PoseId>& own_ids,
-                      const Eigen::MatrixXd& X_own, const std::vector<slam::LoopClosure>& edges,
-                      const std::map<slam::PoseId, Eigen::MatrixXd>& neighbor_blocks,
-                      LocalCertificateProblem* out);
-
 /// Drives one robot through a round: Begin(), then feed every CertificateVector and
 /// CertificateReduction of the round; Done() once the verdict is in. Two exchanges per Lanczos
 /// step: alpha = v^T S v, then (after the three-term recurrence) one full reorthogonalisation
 /// pass's sums c = V^T u with ||u||^2, sent together with the public entries of u (the
 /// CertificateVector of step k + 1): every reader finishes the next vector itself as
 /// (u - V c) / beta from the reduced sums and the public entries of V it already holds. Ritz
-/// values by bisection (O(m) per check). A round whose gradient is above tolerance ends after
-/// the setup sums (kNotCritical, no steps).
+/// values by bisection (O(m) per check), the Ritz vector by inverse iteration. A round whose
+/// gradient is above tolerance ends after the setup sums (kNotCritical, no steps).
 class LanczosParticipant {
   public:
     /// Sends this robot's public entries of the step's vector to its neighbours.
@@ -110,6 +93,8 @@ class LanczosParticipant {
     bool Done() const { return done_; }
     /// The verdict (meaningful once Done()).
     const DistributedVerdict& Verdict() const { return verdict_; }
+    /// This robot's segment of the unit Ritz vector of lambda_min (zero before the first check).
+    Eigen::VectorXd RitzSegment() const;
 
   private:
     enum class Phase { kSetup, kProduct, kPass1, kPass2 };
@@ -134,6 +119,7 @@ class LanczosParticipant {
     std::vector<Eigen::VectorXd> basis_;  ///< own segments of the Lanczos vectors
     Eigen::VectorXd w_;
     std::vector<double> alpha_, beta_;
+    Eigen::VectorXd ritz_;  ///< Ritz vector of lambda_min in the Lanczos basis (last check)
     std::vector<double> pending_c_;  ///< second-pass sums that finish step_'s vector
     double pending_b_ = 1.0;         ///< and its norm
     /// robot -> its public entries of every finished Lanczos vector (to finish the next one)
@@ -144,4 +130,27 @@ class LanczosParticipant {
     std::map<std::pair<int, int>, std::map<int, std::vector<double>>> partials_;
 };
 
-}  // namespace certislam::actors
+/// Result of DistributedMinEigenpair.
+struct DistributedEigenResult {
+    enum class Status {
+        kConverged,     ///< Ritz residual below tolerance
+        kNotConverged,  ///< max_krylov steps reached first (lambda is the best Ritz value)
+    };
+    Status status = Status::kNotConverged;
+    double lambda_min = 0.0;              ///< Rayleigh quotient of the Ritz vector
+    double residual = 0.0;                ///< ||S v - lambda v|| (global)
+    std::vector<Eigen::VectorXd> vector;  ///< the unit Ritz vector, one segment per robot
+    int steps = 0;                        ///< Lanczos steps
+    int products = 0;                     ///< S v products (steps and the residual's)
+    int vector_exchanges = 0;   ///< rounds of public entries sent (the last step sends its next)
+    int scalar_reductions = 0;  ///< sums over robots of one or more scalars
+    double entries_exchanged = 0.0;  ///< doubles of v sent between robots, all exchanges
+};
+
+/// Smallest eigenpair of S held as rows by robots: one LanczosParticipant per robot, their
+/// messages delivered in memory (the certifier actor sends the same ones over the network).
+/// The rows carry no X, so no gradient test is made; `settings` eta and gradient fields unused.
+DistributedEigenResult DistributedMinEigenpair(const std::vector<CertificateRows>& robots,
+                                               const LanczosSettings& settings = {});
+
+}  // namespace certislam::certify

@@ -1,6 +1,6 @@
 // One robot's asynchronous RBCD state: local graph (own poses + neighbour poses its edges touch),
 // warm starts, alignment to the lower robot at first encounter, anchored rounding.
-#include "actors/solver_state.h"
+#include "certify/pipeline/solver_state.h"
 
 #include <algorithm>
 #include <stdexcept>
@@ -9,7 +9,7 @@
 #include "slam/backend/rounding.h"
 #include "slam/core/partition.h"
 
-namespace certislam::actors {
+namespace certislam::certify {
 namespace {
 
 constexpr int kBlock = 4;  // d + 1 columns per pose (d = 3)
@@ -384,4 +384,4 @@ int SolverState::Rank() const { return impl_->rank; }
 int SolverState::StaircaseLevel() const { return impl_->staircase_level; }
 int SolverState::robot() const { return impl_->robot; }
 
-}  // namespace certislam::actors
+}  // namespace certislam::certify

@@ -1,29 +1,38 @@
 // One robot's asynchronous RBCD state, without sockets: its odometry chain and loop closures,
 // the last known poses of its neighbours, its lifted block, warm starts on every new edge, and
-// its trajectory anchored in the team frame. The solver actor is this plus messaging.
+// its trajectory anchored in the team frame (plain data in and out). The solver actor is this
+// plus messaging.
 #pragma once
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <optional>
 #include <set>
 #include <vector>
 
-#include "actors/convert.h"
 #include "certify/pipeline/mission.h"
 #include "slam/backend/rbcd.h"
 #include "slam/core/loop_closure.h"
 #include "slam/core/pose_graph.h"
 
-namespace certislam::actors {
+namespace certislam::certify {
+
+/// Lifted poses of some pose ids: what RBCD solvers exchange.
+struct PoseBlocks {
+    std::vector<slam::PoseId> ids;  ///< one per block
+    Eigen::MatrixXd blocks;         ///< r x (d+1)|ids|, block k = [Y_k p_k]
+    std::uint64_t iteration = 0;    ///< sender's RBCD iteration
+    int staircase_level = 0;        ///< sender's saddle escapes so far
+};
 
 /// Settings of one robot's solver.
 struct SolverConfig {
-    int rank = 5;                    ///< relaxation rank r, >= 3
-    certify::EdgeNoiseConfig noise;  ///< odometry edge weights (loops carry their own)
-    slam::RbcdConfig rbcd;           ///< block trust-region settings (rel_grad_tol used)
+    int rank = 5;           ///< relaxation rank r, >= 3
+    EdgeNoiseConfig noise;  ///< odometry edge weights (loops carry their own)
+    slam::RbcdConfig rbcd;  ///< block trust-region settings (rel_grad_tol used)
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -111,4 +120,4 @@ Eigen::MatrixXd LiftedTimes(const Eigen::MatrixXd& X_a, const Eigen::Isometry3d&
 /// Pose of lifted block X_b in the frame of lifted block X_a: [proj(Y_a^T Y_b), Y_a^T (p_b - p_a)].
 Eigen::Isometry3d LiftedRelative(const Eigen::MatrixXd& X_a, const Eigen::MatrixXd& X_b);
 
-}  // namespace certislam::actors
+}  // namespace certislam::certify

@@ -1,27 +1,30 @@
-// A robot's rows of S and its message-driven share of certify's distributed Lanczos (the same
-// iteration as certify::DistributedMinEigenpair, cut at every exchange so messages can drive it).
-#include "actors/certifier_actor_lanczos.h"
+// One robot's message-driven share of the distributed Lanczos, and a team of them whose
+// messages are delivered in memory.
+#include "certify/distributed/distributed_lanczos.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
+#include <memory>
 #include <random>
+#include <set>
+#include <stdexcept>
+#include <string>
 
-#include "slam/backend/connection_laplacian.h"
-#include "slam/core/partition.h"
-#include "slam/core/pose_graph.h"
+#include "slam/core/check.h"
 
-namespace certislam::actors {
+namespace certislam::certify {
 namespace {
 
-constexpr int kBlock = 4;                   ///< columns per pose, d + 1 with d = 3
 constexpr double kBreakdown = 1e-300;       ///< beta below this: the Krylov space is invariant
 constexpr int kSetupStage = 0;              ///< reduction of the setup sums (step 0)
 constexpr int kPass1Stage = 1;              ///< alpha = v_k^T S v_k
 constexpr int kPass2Stage = 2;              ///< full reorthogonalisation pass and the squared norm
 constexpr int kBisections = 200;            ///< bisection steps at most (each halves the bracket)
 constexpr std::uint64_t kRobotSeed = 7919;  ///< start vector seed stride per robot
+
 constexpr double kInverseIterationShift = 1e-10;  ///< shift below lambda, relative to max |Ritz|
 constexpr int kInverseIterationSweeps = 3;        ///< sweeps of inverse iteration
 
@@ -97,68 +100,18 @@ Eigen::VectorXd TridiagonalEigenvector(const Eigen::VectorXd& a, const Eigen::Ve
 
 }  // namespace
 
-bool MakeLocalProblem(int robot, const std::vector<slam::PoseId>& own_ids,
-                      const Eigen::MatrixXd& X_own, const std::vector<slam::LoopClosure>& edges,
-                      const std::map<slam::PoseId, Eigen::MatrixXd>& neighbor_blocks,
-                      LocalCertificateProblem* out) {
-    const int n = static_cast<int>(own_ids.size());
-    std::map<slam::PoseId, int> local;
-    for (int i = 0; i < n; ++i) local[own_ids[static_cast<size_t>(i)]] = i;
-    slam::PoseGraph graph;
-    graph.d = 3;
-    graph.ids = own_ids;
-    for (const auto& e : edges) {
-        for (const slam::PoseId& id : {e.a, e.b}) {
-            if (local.count(id)) continue;
-            if (!neighbor_blocks.count(id)) return false;
-            local[id] = static_cast<int>(graph.ids.size());
-            graph.ids.push_back(id);
-        }
-        slam::RelativePoseMeasurement m;
-        m.i = local.at(e.a);
-        m.j = local.at(e.b);
-        m.R = e.T_a_b.linear();
-        m.t = e.T_a_b.translation();
-        m.kappa = e.kappa;
-        m.tau = e.tau;
-        graph.edges.push_back(m);
+void LanczosSettings::Validate() const {
+    const auto fail = [](const std::string& field, double value, const std::string& rule) {
+        throw std::invalid_argument("LanczosSettings." + field + " = " + std::to_string(value) +
+                                    ": must be " + rule);
+    };
+    if (max_krylov < 2) fail("max_krylov", max_krylov, ">= 2");
+    if (!(tolerance > 0.0)) fail("tolerance", tolerance, "> 0");
+    if (check_every < 1) fail("check_every", check_every, ">= 1");
+    if (!(eta_relative >= 0.0)) fail("eta_relative", eta_relative, ">= 0");
+    if (!(gradient_tolerance_relative >= 0.0)) {
+        fail("gradient_tolerance_relative", gradient_tolerance_relative, ">= 0");
     }
-    graph.n = static_cast<int>(graph.ids.size());
-    Eigen::MatrixXd X(X_own.rows(), kBlock * graph.n);
-    X.leftCols(X_own.cols()) = X_own;
-    for (int g = n; g < graph.n; ++g) {
-        X.middleCols(kBlock * g, kBlock) = neighbor_blocks.at(graph.ids[static_cast<size_t>(g)]);
-    }
-    // Only Q's own columns are read below: they hold exactly the edges at own poses.
-    const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(graph);
-    slam::Partition partition;
-    partition.begin = {0, n, graph.n};
-    LocalCertificateProblem p;
-    p.robot = robot;
-    p.rows = certify::MakeCertificateRows(Q, X, 3, partition, 0);
-    for (int g : p.rows.public_poses) p.public_ids.push_back(graph.ids[static_cast<size_t>(g)]);
-    Eigen::MatrixXd X_nbr(X.rows(), kBlock * p.rows.neighbor_poses.size());
-    for (size_t k = 0; k < p.rows.neighbor_poses.size(); ++k) {
-        const slam::PoseId id = graph.ids[static_cast<size_t>(p.rows.neighbor_poses[k])];
-        p.neighbor_ids.push_back(id);
-        p.neighbor_robots.insert(id.robot);
-        X_nbr.middleCols(kBlock * k, kBlock) =
-            X.middleCols(kBlock * p.rows.neighbor_poses[k], kBlock);
-    }
-    const Eigen::SparseMatrix<double> Q_own = Q.leftCols(kBlock * n);
-    const Eigen::MatrixXd XQ_own = X * Q_own;  // (X Q)[:, own columns]
-    p.cost = XQ_own.cwiseProduct(X_own).sum();
-    Eigen::MatrixXd G = p.rows.own * X_own.transpose();  // (S X^T)[own rows, :]
-    if (p.rows.nbr.cols() > 0) G += p.rows.nbr * X_nbr.transpose();
-    p.gradient_sq = 4.0 * G.squaredNorm();  // grad f = 2 X S (Riemannian at a critical point)
-    for (int c = 0; c < kBlock * n; ++c) {
-        double sum = 0.0;
-        for (Eigen::SparseMatrix<double>::InnerIterator it(Q, c); it; ++it)
-            sum += std::abs(it.value());
-        p.q_row_sum = std::max(p.q_row_sum, sum);
-    }
-    *out = std::move(p);
-    return true;
 }
 
 LanczosParticipant::LanczosParticipant(LocalCertificateProblem problem, std::vector<int> team,
@@ -169,11 +122,12 @@ LanczosParticipant::LanczosParticipant(LocalCertificateProblem problem, std::vec
       settings_(settings),
       send_vector_(std::move(send_vector)),
       send_reduction_(std::move(send_reduction)) {
+    settings_.Validate();
     verdict_.round = round;
 }
 
 void LanczosParticipant::Begin() {
-    const certify::CertificateRows& rows = problem_.rows;
+    const CertificateRows& rows = problem_.rows;
     std::mt19937_64 rng(settings_.seed + kRobotSeed * static_cast<std::uint64_t>(problem_.robot));
     std::normal_distribution<double> normal;
     Eigen::VectorXd q(rows.own.rows());
@@ -231,7 +185,7 @@ void LanczosParticipant::Share(int step, int stage, const std::vector<double>& v
 
 void LanczosParticipant::SendVector(int step, const Eigen::VectorXd& u) {
     if (problem_.public_ids.empty()) return;
-    const Eigen::VectorXd entries = certify::PublicEntries(problem_.rows, u);
+    const Eigen::VectorXd entries = PublicEntries(problem_.rows, u);
     verdict_.entries_sent += static_cast<double>(entries.size());
     send_vector_(step, problem_.public_ids, entries);
 }
@@ -255,19 +209,20 @@ bool LanczosParticipant::Product() {
         values /= pending_b_;
         V.push_back(values);
     }
-    Eigen::VectorXd nbr(kBlock * problem_.neighbor_ids.size());
+    const int b = problem_.rows.d + 1;
+    Eigen::VectorXd nbr(b * static_cast<Eigen::Index>(problem_.neighbor_ids.size()));
     for (size_t k = 0; k < problem_.neighbor_ids.size(); ++k) {
         const slam::PoseId& id = problem_.neighbor_ids[k];
         const auto& [ids, values] = it->second.at(id.robot);
         const auto pos = std::find(ids.begin(), ids.end(), id);
-        if (pos == ids.end() || values.size() != kBlock * static_cast<Eigen::Index>(ids.size())) {
+        if (pos == ids.end() || values.size() != b * static_cast<Eigen::Index>(ids.size())) {
             Finish(DistributedVerdict::Status::kInconsistent);
             return false;
         }
-        nbr.segment(kBlock * k, kBlock) = values.segment(kBlock * (pos - ids.begin()), kBlock);
+        nbr.segment(b * k, b) = values.segment(b * (pos - ids.begin()), b);
     }
     if (it != vectors_.end()) vectors_.erase(it);
-    w_ = certify::MultiplyRows(problem_.rows, basis_.back(), nbr);
+    w_ = MultiplyRows(problem_.rows, basis_.back(), nbr);
     return true;
 }
 
@@ -356,10 +311,16 @@ bool LanczosParticipant::Converged(double b) {
     verdict_.lambda_min = TridiagonalEigenvalue(a, off, 0);
     const double scale =
         std::max(std::abs(verdict_.lambda_min), std::abs(TridiagonalEigenvalue(a, off, m - 1)));
-    const Eigen::VectorXd y = TridiagonalEigenvector(a, off, verdict_.lambda_min, scale);
-    verdict_.residual_estimate = std::abs(b * y(m - 1));
+    ritz_ = TridiagonalEigenvector(a, off, verdict_.lambda_min, scale);
+    verdict_.residual_estimate = std::abs(b * ritz_(m - 1));
     verdict_.steps = m;
     return verdict_.residual_estimate <= settings_.tolerance * scale || b < kBreakdown;
+}
+
+Eigen::VectorXd LanczosParticipant::RitzSegment() const {
+    Eigen::VectorXd v = Eigen::VectorXd::Zero(problem_.rows.own.rows());
+    for (Eigen::Index i = 0; i < ritz_.size(); ++i) v += ritz_(i) * basis_[i];
+    return v;
 }
 
 void LanczosParticipant::Finish(DistributedVerdict::Status status) {
@@ -377,4 +338,127 @@ void LanczosParticipant::Finish(DistributedVerdict::Status status) {
     partials_.clear();
 }
 
-}  // namespace certislam::actors
+namespace {
+
+using Segments = std::vector<Eigen::VectorXd>;
+
+double Dot(const Segments& a, const Segments& b) {
+    double s = 0.0;
+    for (size_t k = 0; k < a.size(); ++k) s += a[k].dot(b[k]);
+    return s;
+}
+
+/// Robot k's problem from its rows alone: poses named (owner, global index); no X, so no cost
+/// and no gradient (both zero: the gradient test passes trivially).
+std::vector<LocalCertificateProblem> ProblemsOf(const std::vector<CertificateRows>& robots) {
+    std::map<int, int> owner;  // public global pose -> robot
+    for (size_t k = 0; k < robots.size(); ++k) {
+        for (const int g : robots[k].public_poses) owner[g] = static_cast<int>(k);
+    }
+    std::vector<LocalCertificateProblem> problems(robots.size());
+    for (size_t k = 0; k < robots.size(); ++k) {
+        LocalCertificateProblem& p = problems[k];
+        p.robot = static_cast<int>(k);
+        p.rows = robots[k];
+        for (const int g : p.rows.public_poses) p.public_ids.push_back({p.robot, g});
+        for (const int g : p.rows.neighbor_poses) {
+            const auto it = owner.find(g);
+            CERTISLAM_CHECK(it != owner.end());  // every neighbour pose is public at its owner
+            p.neighbor_ids.push_back({it->second, g});
+            p.neighbor_robots.insert(it->second);
+        }
+    }
+    return problems;
+}
+
+/// The exact product S v over the team (for the residual of the final Ritz vector).
+Segments Multiply(const std::vector<LocalCertificateProblem>& problems, const Segments& v) {
+    std::map<slam::PoseId, Eigen::VectorXd> published;
+    for (size_t k = 0; k < problems.size(); ++k) {
+        const int b = problems[k].rows.d + 1;
+        const Eigen::VectorXd entries = PublicEntries(problems[k].rows, v[k]);
+        for (size_t p = 0; p < problems[k].public_ids.size(); ++p) {
+            published[problems[k].public_ids[p]] = entries.segment(b * p, b);
+        }
+    }
+    Segments out(problems.size());
+    for (size_t k = 0; k < problems.size(); ++k) {
+        const int b = problems[k].rows.d + 1;
+        Eigen::VectorXd nbr(b * static_cast<Eigen::Index>(problems[k].neighbor_ids.size()));
+        for (size_t p = 0; p < problems[k].neighbor_ids.size(); ++p) {
+            nbr.segment(b * p, b) = published.at(problems[k].neighbor_ids[p]);
+        }
+        out[k] = MultiplyRows(problems[k].rows, v[k], nbr);
+    }
+    return out;
+}
+
+}  // namespace
+
+DistributedEigenResult DistributedMinEigenpair(const std::vector<CertificateRows>& robots,
+                                               const LanczosSettings& settings) {
+    settings.Validate();
+    CERTISLAM_CHECK(!robots.empty());
+    const std::vector<LocalCertificateProblem> problems = ProblemsOf(robots);
+    std::vector<int> team(robots.size());
+    for (size_t k = 0; k < team.size(); ++k) team[k] = static_cast<int>(k);
+    DistributedEigenResult result;
+    std::deque<std::function<void()>> mail;  // deliveries in send order
+    std::vector<std::unique_ptr<LanczosParticipant>> robot(robots.size());
+    std::set<std::pair<int, int>> exchanges, reductions;  // (step, stage) seen
+    for (size_t k = 0; k < robots.size(); ++k) {
+        const int from = static_cast<int>(k);
+        auto send_vector = [&, from](int step, const std::vector<slam::PoseId>& ids,
+                                     const Eigen::VectorXd& values) {
+            exchanges.insert({step, 0});
+            result.entries_exchanged += static_cast<double>(values.size());
+            for (size_t to = 0; to < problems.size(); ++to) {
+                if (!problems[to].neighbor_robots.count(from)) continue;
+                mail.push_back([&, to, from, step, ids, values] {
+                    robot[to]->OnVector(from, step, ids, values);
+                });
+            }
+        };
+        auto send_reduction = [&, from](int step, int stage, const std::vector<double>& values) {
+            reductions.insert({step, stage});
+            for (size_t to = 0; to < problems.size(); ++to) {
+                if (static_cast<int>(to) == from) continue;
+                mail.push_back([&, to, from, step, stage, values] {
+                    robot[to]->OnReduction(from, step, stage, values);
+                });
+            }
+        };
+        robot[k] = std::make_unique<LanczosParticipant>(problems[k], team, 0, settings, send_vector,
+                                                        send_reduction);
+    }
+    for (auto& r : robot) r->Begin();
+    while (!mail.empty()) {
+        const auto deliver = std::move(mail.front());
+        mail.pop_front();
+        deliver();
+    }
+    const DistributedVerdict& verdict = robot.front()->Verdict();
+    CERTISLAM_CHECK(verdict.status != DistributedVerdict::Status::kInconsistent);
+    result.status = verdict.status == DistributedVerdict::Status::kNotConverged
+                        ? DistributedEigenResult::Status::kNotConverged
+                        : DistributedEigenResult::Status::kConverged;
+    result.steps = verdict.steps;
+    Segments v(robots.size());
+    for (size_t k = 0; k < robots.size(); ++k) v[k] = robot[k]->RitzSegment();
+    const double norm = std::sqrt(Dot(v, v));
+    for (auto& s : v) s /= norm;
+    Segments Sv = Multiply(problems, v);
+    for (const auto& p : problems) {
+        result.entries_exchanged += (p.rows.d + 1.0) * static_cast<double>(p.public_ids.size());
+    }
+    result.lambda_min = Dot(v, Sv);
+    for (size_t k = 0; k < v.size(); ++k) Sv[k] -= result.lambda_min * v[k];
+    result.residual = std::sqrt(Dot(Sv, Sv));
+    result.products = result.steps + 1;
+    result.vector_exchanges = static_cast<int>(exchanges.size()) + 1;
+    result.scalar_reductions = static_cast<int>(reductions.size()) + 3;  // ||v||, v^T S v, ||r||
+    result.vector = std::move(v);
+    return result;
+}
+
+}  // namespace certislam::certify

@@ -1,15 +1,15 @@
 // SolverState: robots exchanging only public poses reach the centralised certified optimum
-// (certify::SolveCertifiedJoint on the same joint graph), in any update order, and a silent
+// (SolveCertifiedJoint on the same joint graph), in any update order, and a silent
 // robot does not stop the others.
-#include "actors/solver_state.h"
+#include "certify/pipeline/solver_state.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "tests/actors/solver_fixture.h"
+#include "tests/certify/pipeline/two_robot_problem.h"
 
-namespace certislam::actors {
+namespace certislam::certify {
 namespace {
 
 constexpr double kPoseTolerance = 1e-5;  ///< metres / radians-ish (matrix entries)
@@ -132,4 +132,4 @@ TEST(SolverState, LoopsReplayedBeforeTheirKeyframesDoNotBreakTheFirstStep) {
 }
 
 }  // namespace
-}  // namespace certislam::actors
+}  // namespace certislam::certify

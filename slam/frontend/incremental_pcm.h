@@ -14,7 +14,7 @@
 #include "slam/frontend/pcm.h"
 #include "slam/frontend/registration.h"
 
-namespace certislam::actors {
+namespace certislam::slam {
 
 /// Odometry of one keyframe as PCM needs it.
 struct KeyframeOdometry {
@@ -26,21 +26,21 @@ struct KeyframeOdometry {
 class IncrementalPcm {
   public:
     /// `config` validated (throws std::invalid_argument).
-    explicit IncrementalPcm(slam::PcmConfig config);
+    explicit IncrementalPcm(PcmConfig config);
 
     /// Records the odometry of keyframe `id` (the first value given is kept).
-    void SetOdometry(const slam::PoseId& id, const KeyframeOdometry& odometry);
+    void SetOdometry(const PoseId& id, const KeyframeOdometry& odometry);
     /// True once the odometry of `id` is known.
-    bool HasOdometry(const slam::PoseId& id) const { return odometry_.count(id) > 0; }
+    bool HasOdometry(const PoseId& id) const { return odometry_.count(id) > 0; }
 
     /// Adds a verified loop; false (and nothing changes) when the odometry of an end is unknown
     /// or a loop with the same ends was added before. An intra-robot loop that disagrees with
     /// the odometry between its ends is recorded as rejected and never kept.
-    bool Add(const slam::LoopClosure& loop, const slam::Information6& information);
+    bool Add(const LoopClosure& loop, const Information6& information);
 
     /// The consistent loops now: per robot pair the exact maximum clique of the pairwise
     /// consistency graph when it has at least min_clique_size members; in arrival order.
-    std::vector<slam::LoopClosure> Consistent() const;
+    std::vector<LoopClosure> Consistent() const;
 
     /// Verified loops added so far.
     int Size() const { return static_cast<int>(loops_.size()); }
@@ -51,17 +51,17 @@ class IncrementalPcm {
 
   private:
     struct Entry {
-        slam::LoopClosure loop;
-        slam::PcmMeasurement measurement;  ///< oriented a.robot <= b.robot
+        LoopClosure loop;
+        PcmMeasurement measurement;  ///< oriented a.robot <= b.robot
         bool odometry_ok = true;
     };
     using Group = std::pair<int, int>;
 
-    bool OdometryAgrees(const slam::PcmMeasurement& m) const;
-    double Pairwise(const slam::PcmMeasurement& i, const slam::PcmMeasurement& j) const;
+    bool OdometryAgrees(const PcmMeasurement& m) const;
+    double Pairwise(const PcmMeasurement& i, const PcmMeasurement& j) const;
 
-    slam::PcmConfig config_;
-    std::map<slam::PoseId, KeyframeOdometry> odometry_;
+    PcmConfig config_;
+    std::map<PoseId, KeyframeOdometry> odometry_;
     std::vector<Entry> loops_;
     std::map<Group, std::vector<int>> groups_;                  ///< entries with odometry_ok
     std::map<Group, std::vector<std::vector<int>>> adjacency_;  ///< per group, local indices
@@ -69,4 +69,4 @@ class IncrementalPcm {
     mutable bool exact_ = true;
 };
 
-}  // namespace certislam::actors
+}  // namespace certislam::slam

@@ -1,22 +1,22 @@
 // Incremental PCM: the pairwise consistency graph grows by one row per verified loop (odometry
 // never changes once known, so old pairs are not re-tested); cliques are searched afresh.
-#include "actors/loop_matcher_actor_pcm.h"
+#include "slam/frontend/incremental_pcm.h"
 
 #include <algorithm>
 
 #include "slam/core/se3.h"
 
-namespace certislam::actors {
+namespace certislam::slam {
 
-IncrementalPcm::IncrementalPcm(slam::PcmConfig config) : config_(config) { config_.Validate(); }
+IncrementalPcm::IncrementalPcm(PcmConfig config) : config_(config) { config_.Validate(); }
 
-void IncrementalPcm::SetOdometry(const slam::PoseId& id, const KeyframeOdometry& odometry) {
+void IncrementalPcm::SetOdometry(const PoseId& id, const KeyframeOdometry& odometry) {
     odometry_.emplace(id, odometry);
 }
 
-bool IncrementalPcm::OdometryAgrees(const slam::PcmMeasurement& m) const {
+bool IncrementalPcm::OdometryAgrees(const PcmMeasurement& m) const {
     // Dense odometry of the robot up to the later end (the matcher's own robot has it all):
-    // the same test as slam::RejectOutliersPcm's, on a one-measurement problem.
+    // the same test as RejectOutliersPcm's, on a one-measurement problem.
     const int r = m.a.robot, last = std::max(m.a.index, m.b.index);
     std::vector<std::vector<Eigen::Isometry3d>> odometry(static_cast<size_t>(r) + 1);
     for (int k = 0; k <= last; ++k) {
@@ -24,33 +24,32 @@ bool IncrementalPcm::OdometryAgrees(const slam::PcmMeasurement& m) const {
         if (it == odometry_.end()) return true;  // not dense: the clique test alone decides
         odometry[static_cast<size_t>(r)].push_back(it->second.T_odom);
     }
-    slam::PcmConfig single = config_;
+    PcmConfig single = config_;
     single.min_clique_size = 1;
-    return slam::RejectOutliersPcm({m}, odometry, single).inlier.front();
+    return RejectOutliersPcm({m}, odometry, single).inlier.front();
 }
 
-double IncrementalPcm::Pairwise(const slam::PcmMeasurement& i,
-                                const slam::PcmMeasurement& j) const {
+double IncrementalPcm::Pairwise(const PcmMeasurement& i, const PcmMeasurement& j) const {
     // Only the four ends' odometry is known (and needed): renumber them densely per robot.
     const int robots = std::max(i.a.robot, i.b.robot) + 1;
     std::vector<std::vector<Eigen::Isometry3d>> odometry(static_cast<size_t>(robots));
     std::vector<std::vector<double>> travelled(static_cast<size_t>(robots));
-    const auto local = [&](const slam::PoseId& id) {
+    const auto local = [&](const PoseId& id) {
         const KeyframeOdometry& o = odometry_.at(id);
         odometry[static_cast<size_t>(id.robot)].push_back(o.T_odom);
         travelled[static_cast<size_t>(id.robot)].push_back(o.travelled_m);
-        return slam::PoseId{id.robot,
-                            static_cast<int>(odometry[static_cast<size_t>(id.robot)].size()) - 1};
+        return PoseId{id.robot,
+                      static_cast<int>(odometry[static_cast<size_t>(id.robot)].size()) - 1};
     };
-    slam::PcmMeasurement li = i, lj = j;
+    PcmMeasurement li = i, lj = j;
     li.a = local(i.a);
     li.b = local(i.b);
     lj.a = local(j.a);
     lj.b = local(j.b);
-    return slam::PairwiseMahalanobis2(li, lj, odometry, travelled, config_);
+    return PairwiseMahalanobis2(li, lj, odometry, travelled, config_);
 }
 
-bool IncrementalPcm::Add(const slam::LoopClosure& loop, const slam::Information6& information) {
+bool IncrementalPcm::Add(const LoopClosure& loop, const Information6& information) {
     if (!HasOdometry(loop.a) || !HasOdometry(loop.b)) return false;
     for (const Entry& e : loops_) {
         if (e.loop.a == loop.a && e.loop.b == loop.b) return false;
@@ -60,9 +59,9 @@ bool IncrementalPcm::Add(const slam::LoopClosure& loop, const slam::Information6
         // Orient like RejectOutliersPcm: a.robot <= b.robot, the inverse measurement's
         // information by the adjoint of T_a_b (right perturbation).
         const Eigen::Isometry3d T_b_a = loop.T_a_b.inverse();
-        entry.measurement = slam::PcmMeasurement{loop.b, loop.a, T_b_a, information};
-        const slam::Matrix6 ad = slam::Adjoint(loop.T_a_b);
-        const slam::Matrix6 ad_inv = ad.inverse();
+        entry.measurement = PcmMeasurement{loop.b, loop.a, T_b_a, information};
+        const Matrix6 ad = Adjoint(loop.T_a_b);
+        const Matrix6 ad_inv = ad.inverse();
         entry.measurement.information = ad_inv.transpose() * information * ad_inv;
     }
     if (!loop.inter_robot() && config_.check_intra_against_odometry) {
@@ -88,23 +87,23 @@ bool IncrementalPcm::Add(const slam::LoopClosure& loop, const slam::Information6
     return true;
 }
 
-std::vector<slam::LoopClosure> IncrementalPcm::Consistent() const {
+std::vector<LoopClosure> IncrementalPcm::Consistent() const {
     std::vector<bool> keep(loops_.size(), false);
     exact_ = true;
     for (const auto& [group, members] : groups_) {
         std::int64_t nodes = 0;
         bool exact = true;
         const auto clique =
-            slam::MaximumClique(adjacency_.at(group), config_.max_branch_nodes, &nodes, &exact);
+            MaximumClique(adjacency_.at(group), config_.max_branch_nodes, &nodes, &exact);
         exact_ = exact_ && exact;
         if (static_cast<int>(clique.size()) < config_.min_clique_size) continue;
         for (int u : clique) keep[static_cast<size_t>(members[static_cast<size_t>(u)])] = true;
     }
-    std::vector<slam::LoopClosure> out;
+    std::vector<LoopClosure> out;
     for (size_t k = 0; k < loops_.size(); ++k) {
         if (keep[k]) out.push_back(loops_[k].loop);
     }
     return out;
 }
 
-}  // namespace certislam::actors
+}  // namespace certislam::slam

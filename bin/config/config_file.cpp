@@ -139,7 +139,7 @@ void ApplyConfigFile(const YAML::Node& root, TeamConfig* config) {
     // The source kind first: it decides which source keys belong.
     if (root.IsMap() && root["source"] && root["source"].IsMap() && root["source"]["kind"]) {
         const YAML::Node kind = root["source"]["kind"];
-        const auto& key = Under("source.kind").front();
+        const ConfigKey* key = Under("source.kind").front();
         try {
             key->read(kind, 0, config);
         } catch (const std::invalid_argument& e) {

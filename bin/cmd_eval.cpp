@@ -1,6 +1,7 @@
 // `certislam eval`: ATE RMSE (Umeyama SE(3) alignment) and RPE of estimated trajectories, evo's
 // conventions, jointly across robots and per robot.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -18,8 +19,38 @@ struct EvalOptions {
     std::string format = "tum";
     std::string align = "se3";
     double max_diff_s = 0.01;
+    bool allow_length_mismatch = false;
+    bool allow_equal_stamps = false;
     bool json = false;
 };
+
+/// Why a pair of trajectories cannot be compared as given ("" when it can): KITTI pairs poses
+/// by index, so the files must have as many poses; TUM pairs by stamp, so the stamps of a file
+/// must not all be equal (every pose would pair with the first).
+std::string Refusal(const EvalOptions& options, slam::TrajectoryFormat format,
+                    const std::string& gt_path, const slam::Trajectory& gt,
+                    const std::string& est_path, const slam::Trajectory& est) {
+    if (format == slam::TrajectoryFormat::kKitti && gt.size() != est.size() &&
+        !options.allow_length_mismatch) {
+        return gt_path + " has " + std::to_string(gt.size()) + " poses but " + est_path + " has " +
+               std::to_string(est.size()) +
+               " (KITTI pairs by index; --allow-length-mismatch pairs the first ones)";
+    }
+    if (format != slam::TrajectoryFormat::kTum || options.allow_equal_stamps) return "";
+    const auto all_equal = [](const slam::Trajectory& t) {
+        return t.size() > 1 && std::all_of(t.begin(), t.end(), [&](const slam::StampedPose& p) {
+                   return p.stamp_s == t.front().stamp_s;
+               });
+    };
+    for (const auto& [path, trajectory] : {std::pair{&gt_path, &gt}, std::pair{&est_path, &est}}) {
+        if (all_equal(*trajectory)) {
+            return *path +
+                   ": every stamp is equal: poses cannot be paired by time "
+                   "(--allow-equal-stamps to compare anyway)";
+        }
+    }
+    return "";
+}
 
 void PrintText(const EvalOptions& options, const slam::TeamErrors& team) {
     std::printf("alignment: %s (joint across %zu trajectories), %d pose pairs\n",
@@ -36,6 +67,7 @@ void PrintText(const EvalOptions& options, const slam::TeamErrors& team) {
 
 nlohmann::json ToJson(const EvalOptions& options, const slam::TeamErrors& team) {
     nlohmann::json j;
+    j["schema_version"] = kSchemaVersion;
     j["alignment"] = options.align;
     j["format"] = options.format;
     j["pairs"] = team.pairs;
@@ -64,6 +96,7 @@ int RunEval(int argc, char** argv) {
     CLI::App app{
         "Trajectory errors: ATE RMSE after Umeyama SE(3) alignment and RPE (evo's "
         "conventions). Several --gt/--est pairs (one per robot) are aligned jointly."};
+    app.option_defaults()->always_capture_default();
     app.add_option("--gt", options.gt, "ground-truth trajectory (repeat: one per robot)")
         ->required();
     app.add_option("--est", options.est, "estimated trajectory (repeat, same order as --gt)")
@@ -72,6 +105,10 @@ int RunEval(int argc, char** argv) {
         ->check(CLI::IsMember({"tum", "kitti"}));
     app.add_option("--align", options.align, "alignment")->check(CLI::IsMember({"se3", "none"}));
     app.add_option("--max-diff", options.max_diff_s, "TUM association: max stamp difference, s");
+    app.add_flag("--allow-length-mismatch", options.allow_length_mismatch,
+                 "KITTI: compare files with different pose counts (the first poses pair up)");
+    app.add_flag("--allow-equal-stamps", options.allow_equal_stamps,
+                 "TUM: compare a file whose stamps are all equal");
     app.add_flag("--json", options.json, "print JSON");
     CLI11_PARSE(app, argc, argv);
     if (options.gt.size() != options.est.size()) {
@@ -94,6 +131,12 @@ int RunEval(int argc, char** argv) {
                 std::fprintf(stderr, "certislam eval: %s\n", read->error.c_str());
                 return 1;
             }
+        }
+        const std::string refusal =
+            Refusal(options, format, options.gt[k], gt.trajectory, options.est[k], est.trajectory);
+        if (!refusal.empty()) {
+            std::fprintf(stderr, "certislam eval: %s\n", refusal.c_str());
+            return 1;
         }
         robots.push_back(slam::Associate(gt.trajectory, est.trajectory, association));
     }

@@ -1,6 +1,8 @@
-// `certislam keygen [--out PREFIX] [--json]`: writes a CURVE key pair for one robot.
+// `certislam keygen [--out PREFIX] [--force] [--json]`: writes a CURVE key pair for one robot;
+// an existing key is kept unless --force.
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -18,14 +20,27 @@ int RunKeygen(int argc, char** argv) {
     app.name("certislam keygen");
     std::string prefix = "robot";
     bool json = false;
+    bool force = false;
+    app.option_defaults()->always_capture_default();
     app.add_option("--out", prefix, "path prefix of the two files");
+    app.add_flag("--force", force, "overwrite existing PREFIX.pub / PREFIX.key");
     app.add_flag("--json", json, "print the file names and public key as JSON");
     CLI11_PARSE(app, argc, argv);
 
+    for (const std::string& path : {prefix + ".pub", prefix + ".key"}) {
+        if (!force && std::filesystem::exists(path)) {
+            std::fprintf(stderr,
+                         "certislam keygen: %s exists: not overwriting a key (--force to replace "
+                         "it)\n",
+                         path.c_str());
+            return kExitBadInput;
+        }
+    }
     const transport::KeyPair keys = transport::GenerateKeyPair();
     transport::SaveKeyPair(keys, prefix);
     if (json) {
-        nlohmann::json out{{"public_key_file", prefix + ".pub"},
+        nlohmann::json out{{"schema_version", kSchemaVersion},
+                           {"public_key_file", prefix + ".pub"},
                            {"secret_key_file", prefix + ".key"},
                            {"public_z85", keys.public_z85}};
         std::printf("%s\n", out.dump(2).c_str());

@@ -63,7 +63,8 @@ nlohmann::json ToJson(const Outcome& o) {
     for (int i = 0; i < 6; ++i) {
         for (int c = 0; c < 6; ++c) info.push_back(r.information(i, c));
     }
-    return {{"T_target_source", T},
+    return {{"schema_version", kSchemaVersion},
+            {"T_target_source", T},
             {"fitness", r.fitness},
             {"inlier_rmse_m", r.inlier_rmse_m},
             {"sc_distance", o.sc.distance},
@@ -80,6 +81,7 @@ nlohmann::json ToJson(const Outcome& o) {
 
 int RunRegister(int argc, char** argv) {
     CLI::App app{"Register SOURCE onto TARGET (PCD, PLY or KITTI .bin), seeded by Scan Context"};
+    app.option_defaults()->always_capture_default();
     std::string source_path, target_path;
     bool json = false, no_seed = false;
     slam::RegistrationConfig config;

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <thread>
 
@@ -50,9 +51,10 @@ int RunRobot(int argc, char** argv) {
     int id = -1;
     bool json = false;
     double timeout_s = 300.0;
-    app.add_option("CONFIG", config_path, "team configuration (JSON)")->required();
+    app.option_defaults()->always_capture_default();
+    app.add_option("CONFIG", config_path, "team configuration (YAML or JSON)")->required();
     app.add_option("--id", id, "this robot's id")->required();
-    app.add_option("--out", out_dir, "write robot<K>.tum and report.json here");
+    app.add_option("--out", out_dir, "write robot<K>.tum and robot<K>.report.json here");
     app.add_option("--timeout", timeout_s, "give up after this many seconds");
     std::string log_dir;
     app.add_option("--log-dir", log_dir, "durable log folder (overrides the config's log_dir)");
@@ -89,7 +91,7 @@ int RunRobot(int argc, char** argv) {
         const nlohmann::json mesh = WriteMesh(node, node_config, id, out_dir);
         node.Stop();
         auto report = nlohmann::json::parse(
-            WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds));
+            WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds, ""));
         report["bytes_sent_by_actor"] = bytes_by_actor;
         const actors::LoopMatcherActor& matcher = node.Matcher();
         report["matcher"] = {{"verified", matcher.Verified()},
@@ -102,12 +104,20 @@ int RunRobot(int argc, char** argv) {
                                {"settled_skips", certifier.SettledSkips()},
                                {"fallbacks", certifier.Fallbacks()}};
         if (!mesh.is_null()) report["mesh"] = mesh;
-        std::printf("%s\n", report.dump(2).c_str());
-        if (!json) std::printf("%s\n", done ? "certified" : "TIMED OUT");
-        return done ? 0 : 2;
+        const std::string text = report.dump(2);
+        if (!out_dir.empty()) {
+            std::ofstream(out_dir + "/robot" + std::to_string(id) + ".report.json") << text << "\n";
+        }
+        if (json) {
+            std::printf("%s\n", text.c_str());
+        } else {
+            std::printf("%s%s\n", TeamReportText(text).c_str(),
+                        done ? "done: certified" : "not certified before the timeout");
+        }
+        return done ? kExitDone : kExitNotCertified;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "certislam robot: %s\n", e.what());
-        return 1;
+        return kExitBadInput;
     }
 }
 

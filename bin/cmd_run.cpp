@@ -17,7 +17,8 @@ int RunRun(int argc, char** argv) {
     std::string config_path, out_dir;
     bool json = false;
     double timeout_s = 300.0;
-    app.add_option("CONFIG", config_path, "team configuration (JSON)")->required();
+    app.option_defaults()->always_capture_default();
+    app.add_option("CONFIG", config_path, "team configuration (YAML or JSON)")->required();
     app.add_option("--out", out_dir, "write robot<k>.tum and report.json here");
     app.add_option("--timeout", timeout_s, "give up after this many seconds");
     app.add_flag("--json", json, "print the report as JSON");
@@ -51,17 +52,18 @@ int RunRun(int argc, char** argv) {
             bytes += node->BytesSentToPeers();
         }
         for (auto& node : nodes) node->Stop();
-        const std::string report =
-            WriteTeamOutputs(out_dir, config.robots, snapshots, source, bytes, seconds);
+        const std::string report = WriteTeamOutputs(out_dir, config.robots, snapshots, source,
+                                                    bytes, seconds, "report.json");
         if (json) {
             std::printf("%s\n", report.c_str());
         } else {
-            std::printf("%s\n%s\n", report.c_str(), done ? "certified" : "TIMED OUT");
+            std::printf("%s%s\n", TeamReportText(report).c_str(),
+                        done ? "done: certified" : "not certified before the timeout");
         }
-        return done ? 0 : 2;
+        return done ? kExitDone : kExitNotCertified;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "certislam run: %s\n", e.what());
-        return 1;
+        return kExitBadInput;
     }
 }
 

@@ -10,6 +10,8 @@
 #include <string>
 
 #include "bin/command.h"
+#include "bin/solve_output.h"
+#include "bin/verdict.h"
 #include "certify/pose_graph_solver.h"
 #include "slam/io/g2o_io.h"
 #include "slam/io/multirobot_io.h"
@@ -47,6 +49,7 @@ nlohmann::json ToJson(const SolveOptions& o, const slam::PoseGraph& graph, int r
                       const certify::PoseGraphSolverResult& r) {
     const auto& c = r.certificate;
     nlohmann::json j = {
+        {"schema_version", kSchemaVersion},
         {"file", o.file},
         {"method", o.method},
         {"objective", r.cost},
@@ -122,6 +125,7 @@ slam::PoseGraphReadResult Read(const std::string& path) {
 int RunSolve(int argc, char** argv) {
     SolveOptions o;
     CLI::App app{"Certifiably optimal pose-graph optimisation (RBCD + dual certificate)"};
+    app.option_defaults()->always_capture_default();
     app.add_option("file", o.file, "g2o file, or a multi-robot CSV directory")->required();
     app.add_option("--robots", o.robots,
                    "contiguous robot blocks (default 1; a CSV directory: its own robots)")
@@ -131,11 +135,16 @@ int RunSolve(int argc, char** argv) {
     app.add_option("--rank", o.rank, "starting relaxation rank r (default d)")
         ->check(CLI::PositiveNumber);
     app.add_flag("--robust", o.robust, "GNC-TLS against outlier loop closures, then certify");
-    app.add_option("--out", o.out, "write the solution as a g2o file");
+    app.add_option("--out", o.out,
+                   "write the solution (.g2o, .tum or .kitti; pose 0 where the input has it)");
     app.add_flag("--json", o.json, "print one JSON object on stdout");
     app.add_flag("--quiet", o.quiet, "no progress lines on stderr");
     CLI11_PARSE(app, argc, argv);
 
+    if (!o.out.empty() && !SolutionFormatError(o.out).empty()) {
+        std::fprintf(stderr, "certislam solve: error: %s\n", SolutionFormatError(o.out).c_str());
+        return 1;
+    }
     const slam::PoseGraphReadResult read = Read(o.file);
     if (!read.ok()) {
         std::fprintf(stderr, "certislam solve: error: %s\n", read.error.c_str());
@@ -168,7 +177,7 @@ int RunSolve(int argc, char** argv) {
                                            : graph.ids.back().robot + 1;
     if (!o.out.empty()) {
         std::string error;
-        if (!slam::WriteG2o(o.out, result.solved_graph, result.poses, &error)) {
+        if (!WriteSolution(o.out, graph, result.solved_graph, result.poses, &error)) {
             std::fprintf(stderr, "certislam solve: error: %s\n", error.c_str());
             return 1;
         }
@@ -180,7 +189,8 @@ int RunSolve(int argc, char** argv) {
     } else {
         PrintText(graph, robots, result);
     }
-    return 0;
+    return result.status == certify::PoseGraphSolverResult::Status::kCertified ? kExitDone
+                                                                               : kExitNotCertified;
 }
 
 const Registrar kRegistrar{

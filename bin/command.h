@@ -8,6 +8,17 @@
 
 namespace certislam::bin {
 
+/// Version of every JSON object the command prints or writes (bump on an incompatible change).
+inline constexpr int kSchemaVersion = 1;
+
+/// Exit codes of every subcommand (documented in `certislam --help` and the README).
+enum ExitCode : int {
+    kExitDone = 0,          ///< done (certified where there is a certificate)
+    kExitBadInput = 1,      ///< bad input file or configuration
+    kExitUsage = 2,         ///< bad command line
+    kExitNotCertified = 3,  ///< finished but not certified (or timed out)
+};
+
 /// A subcommand's entry point: receives its own arguments (argv[0] is "certislam <name>") and
 /// returns the process exit code.
 using CommandFn = std::function<int(int argc, char** argv)>;

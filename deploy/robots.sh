@@ -5,7 +5,9 @@
 # (not root, no `ip netns`) or when CERTISLAM_NETNS=0. Waits for all and reports their exit codes.
 # Usage: deploy/robots.sh N CONFIG [OUT_DIR]
 #   CONFIG: a team configuration (source, solver, matcher); its "robots" (0..N-1) and
-#   "network" parts are written here. Results: OUT_DIR/robot<k>.tum, OUT_DIR/robot<k>.log, OUT_DIR/team.json.
+#   "network" parts are written here. Results: OUT_DIR/robot<k>.tum, OUT_DIR/robot<k>.log,
+#   OUT_DIR/robot<k>.report.json (each robot's own), OUT_DIR/report.json (the team's, merged),
+#   OUT_DIR/team.json (the configuration the robots ran).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 n="${1:?usage: deploy/robots.sh N CONFIG [OUT_DIR]}"
@@ -57,7 +59,7 @@ fi
 # The team configuration with its network part: addresses and key files.
 network=""
 for ((k = 0; k < n; k++)); do
-    "$bin" keygen --out "$out/keys/robot$k" >/dev/null
+    "$bin" keygen --force --out "$out/keys/robot$k" >/dev/null
     network+="$([ "$k" -gt 0 ] && echo ,)\"$k\": {\"host\": \"$(host_of "$k")\", "
     network+="\"base_port\": $((base_port + 10 * k)), "
     network+="\"public_key\": \"$out/keys/robot$k.pub\", \"secret_key\": \"$out/keys/robot$k.key\"}"
@@ -79,11 +81,35 @@ for ((k = 0; k < n; k++)); do
 done
 status=0
 for ((k = 0; k < n; k++)); do
-    if wait "${pids[$k]}"; then
-        echo "robot $k: certified ($out/robot$k.tum)"
-    else
-        echo "robot $k: exit $? (see $out/robot$k.log)"
-        status=1
-    fi
+    code=0
+    wait "${pids[$k]}" || code=$?
+    case "$code" in
+        0) echo "robot $k: certified ($out/robot$k.tum)" ;;
+        3) echo "robot $k: finished, not certified (see $out/robot$k.log)" ;;
+        *) echo "robot $k: exit $code (see $out/robot$k.log)" ;;
+    esac
+    if [ "$code" != 0 ] && { [ "$status" = 0 ] || [ "$code" != 3 ]; }; then status=$code; fi
 done
+# The team report: every robot's own report, and what holds for the team.
+python3 - "$out" "$n" <<'PY'
+import json, os, sys
+out, n = sys.argv[1], int(sys.argv[2])
+reports = []
+for k in range(n):
+    path = os.path.join(out, f"robot{k}.report.json")
+    if os.path.exists(path):
+        reports.append(json.load(open(path)))
+verdicts = sorted({r.get("verdict", "none") for r in reports})
+team = {
+    "schema_version": 1,
+    "robots": [robot for r in reports for robot in r.get("robots", [])],
+    "reports": len(reports),
+    "certified": len(reports) == n and all(r.get("certified") for r in reports),
+    "verdict": verdicts[0] if len(verdicts) == 1 and len(reports) == n else "inconclusive",
+    "bytes_sent": sum(r.get("bytes_sent", 0) for r in reports),
+    "seconds": max((r.get("seconds", 0.0) for r in reports), default=0.0),
+}
+json.dump(team, open(os.path.join(out, "report.json"), "w"), indent=2)
+print(f"robots.sh: team report {os.path.join(out, 'report.json')}: {team['verdict']}")
+PY
 exit "$status"

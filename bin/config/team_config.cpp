@@ -1,13 +1,19 @@
-// JSON configuration of run/robot modes, the simulated source, and the team's outputs.
+// Configuration files (YAML or JSON) of run/robot modes, the simulated source, and the team's
+// outputs.
 #include "bin/config/team_config.h"
 
+#include <yaml-cpp/yaml.h>
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <stdexcept>
 
+#include "bin/command.h"
+#include "bin/config/config_keys.h"
+#include "bin/verdict.h"
 #include "slam/eval/trajectory_metrics.h"
 #include "slam/io/trajectory_io.h"
 #include "transport/curve.h"
@@ -16,82 +22,6 @@ namespace certislam::bin {
 namespace {
 
 using nlohmann::json;
-
-template <class T>
-void Read(const json& object, const char* key, T* value) {
-    if (object.contains(key)) *value = object.at(key).get<T>();
-}
-
-void ReadSolver(const json& j, actors::RobotNodeConfig* node) {
-    Read(j, "rank", &node->solver.solver.rank);
-    Read(j, "rel_grad_tol", &node->solver.solver.rbcd.rel_grad_tol);
-    Read(j, "odometry_sigma_t_m", &node->solver.solver.noise.odometry_sigma_t_m);
-    Read(j, "odometry_sigma_r_rad", &node->solver.solver.noise.odometry_sigma_r_rad);
-    int max_staircase = node->certifier.max_staircase_steps;
-    Read(j, "max_staircase_steps", &max_staircase);
-    node->certifier.max_staircase_steps = max_staircase;
-}
-
-void ReadCertifier(const json& j, const std::string& path, actors::RobotNodeConfig* node) {
-    const std::string mode = j.value("mode", "distributed");
-    if (mode != "distributed" && mode != "centralised") {
-        throw std::runtime_error(path + ": certifier.mode: \"" + mode +
-                                 "\" is not distributed or centralised");
-    }
-    node->certifier.distributed = mode == "distributed";
-    Read(j, "max_krylov", &node->certifier.lanczos.max_krylov);
-    Read(j, "tolerance", &node->certifier.lanczos.tolerance);
-}
-
-void ReadMatcher(const json& j, actors::RobotNodeConfig* node) {
-    Read(j, "max_sc_distance", &node->matcher.max_sc_distance);
-    Read(j, "query_stride", &node->matcher.query_stride);
-    Read(j, "min_intra_gap", &node->matcher.min_intra_gap);
-    Read(j, "intra_robot", &node->matcher.intra_robot);
-    Read(j, "place_window", &node->matcher.place_window);
-    Read(j, "downsample_replies", &node->matcher.downsample_replies);
-    if (j.contains("registration")) {
-        const json& r = j.at("registration");
-        Read(r, "voxel_m", &node->matcher.registration.voxel_m);
-        Read(r, "min_fitness", &node->matcher.registration.min_fitness);
-        Read(r, "max_correspondence_m", &node->matcher.registration.max_correspondence_m);
-    }
-}
-
-void ReadMapping(const json& j, const std::string& path, actors::RobotNodeConfig* node) {
-    Read(j, "enabled", &node->mapping);
-    Read(j, "voxel_m", &node->mapper.map.tsdf.voxel_size_m);
-    Read(j, "submap_distance_m", &node->mapper.map.submap_distance_m);
-    Read(j, "share_submaps", &node->mapper.share);
-    Read(j, "zstd_level", &node->mapper.zstd_level);
-    const std::string team_map = j.value("team_map", "anchor");
-    if (team_map == "anchor") {
-        node->mapper.team_map = actors::TeamMap::kAnchor;
-    } else if (team_map == "all") {
-        node->mapper.team_map = actors::TeamMap::kAll;
-    } else if (team_map == "none") {
-        node->mapper.team_map = actors::TeamMap::kNone;
-    } else {
-        throw std::runtime_error(path + ": mapping.team_map: \"" + team_map +
-                                 "\" is not anchor, all or none");
-    }
-}
-
-void ReadNetwork(const json& j, const std::string& dir, TeamConfig* config) {
-    const auto resolve = [&](const std::string& p) {
-        return p.empty() || p.front() == '/' ? p : (std::filesystem::path(dir) / p).string();
-    };
-    for (const auto& [key, value] : j.items()) {
-        RobotEndpointConfig robot;
-        Read(value, "host", &robot.host);
-        Read(value, "base_port", &robot.base_port);
-        Read(value, "public_key", &robot.public_key);
-        Read(value, "secret_key", &robot.secret_key);
-        robot.public_key = resolve(robot.public_key);
-        robot.secret_key = resolve(robot.secret_key);
-        config->network[std::stoi(key)] = robot;
-    }
-}
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 
@@ -136,27 +66,20 @@ TeamConfig LoadTeamConfig(const std::string& path) {
     if (!in) throw std::runtime_error(path + ": cannot open");
     TeamConfig config;
     config.path = path;
+    YAML::Node root;
     try {
-        const json j = json::parse(in);
-        config.robots = j.at("robots").get<std::vector<int>>();
-        if (!j.contains("source")) throw std::runtime_error("source: missing");
-        config.source = ReadSourceConfig(j.at("source"), path, config.robots);
-        Read(j, "log_dir", &config.log_dir);
-        if (j.contains("solver")) ReadSolver(j.at("solver"), &config.node);
-        if (j.contains("matcher")) ReadMatcher(j.at("matcher"), &config.node);
-        if (j.contains("certifier")) ReadCertifier(j.at("certifier"), path, &config.node);
-        if (j.contains("mapping")) ReadMapping(j.at("mapping"), path, &config.node);
-        if (j.contains("network")) {
-            ReadNetwork(j.at("network"), std::filesystem::path(path).parent_path().string(),
-                        &config);
-        }
-    } catch (const json::exception& e) {
-        throw std::runtime_error(path + ": " + e.what());
+        root = YAML::Load(in);
+    } catch (const YAML::ParserException& e) {
+        throw std::runtime_error(path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
     }
-    if (config.robots.empty()) throw std::runtime_error(path + ": robots: must not be empty");
-    for (size_t k = 0; k < config.robots.size(); ++k) {
-        if (config.robots[k] != static_cast<int>(k)) {
-            throw std::runtime_error(path + ": robots: must be 0, 1, ..., N-1");
+    ApplyConfigFile(root, &config);
+    if (!root["robots"]) throw std::runtime_error(path + ": robots: missing");
+    if (!root["source"]) throw std::runtime_error(path + ": source: missing");
+    FinishSourceConfig(path, config.robots, &config.source);
+    for (const auto& [r, net] : config.network) {
+        if (std::find(config.robots.begin(), config.robots.end(), r) == config.robots.end()) {
+            throw std::runtime_error(path + ": network." + std::to_string(r) +
+                                     ": robot not in the team");
         }
     }
     try {
@@ -220,8 +143,10 @@ actors::TeamWiring TcpWiring(const TeamConfig& config, int robot) {
 
 std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& robots,
                              const std::vector<actors::SolverSnapshot>& snapshots,
-                             const TeamSource& source, std::uint64_t bytes_sent, double seconds) {
+                             const TeamSource& source, std::uint64_t bytes_sent, double seconds,
+                             const std::string& report_name) {
     json report;
+    report["schema_version"] = kSchemaVersion;
     report["robots"] = json::array();
     int keyframes = 0, loops = 0;
     for (size_t k = 0; k < robots.size(); ++k) {
@@ -246,17 +171,40 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
     const auto& report_of = snapshots.front().report;
     report["certified"] = report_of && report_of->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
     report["lambda_min"] = report_of ? report_of->lambda_min() : 0.0;
-    report["verdict"] = report_of ? v1::CertificateVerdict_Name(report_of->verdict()) : "none";
+    report["verdict"] = report_of ? VerdictName(report_of->verdict()) : "none";
     if (report_of) report["duality_gap"] = report_of->duality_gap();
-    if (report_of) report["certificate_path"] = v1::CertificatePath_Name(report_of->path());
+    if (report_of) report["certificate_path"] = CertificatePathName(report_of->path());
     report["inter_robot_loops"] = loops / 2;  // each loop is known to both of its robots
     report["bytes_sent"] = bytes_sent;
     report["bytes_per_keyframe"] = keyframes > 0 ? double(bytes_sent) / keyframes : 0.0;
     report["keyframes_per_second"] = seconds > 0 ? keyframes / seconds : 0.0;
     report["seconds"] = seconds;
     std::string text = report.dump(2);
-    if (!dir.empty()) std::ofstream(dir + "/report.json") << text << "\n";
+    if (!dir.empty() && !report_name.empty()) {
+        std::ofstream(dir + "/" + report_name) << text << "\n";
+    }
     return text;
+}
+
+std::string TeamReportText(const std::string& report_json) {
+    const json r = json::parse(report_json);
+    std::ostringstream out;
+    out << "verdict: " << r.value("verdict", "none");
+    if (r.contains("certificate_path"))
+        out << " (" << r["certificate_path"].get<std::string>() << ")";
+    out << ", lambda_min " << r.value("lambda_min", 0.0) << ", " << r.value("seconds", 0.0)
+        << " s, " << r.value("bytes_sent", std::uint64_t{0}) << " bytes sent, "
+        << r.value("inter_robot_loops", 0) << " inter-robot loops\n";
+    for (const auto& robot : r.at("robots")) {
+        out << "robot " << robot.value("id", -1) << ": " << robot.value("keyframes", 0)
+            << " keyframes, anchor " << robot.value("anchor", -1);
+        for (const char* key :
+             {"ate_rmse_own_alignment", "ate_rmse_team_frame", "offset_error_m"}) {
+            if (robot.contains(key)) out << ", " << key << " " << robot[key].get<double>();
+        }
+        out << "\n";
+    }
+    return out.str();
 }
 
 }  // namespace certislam::bin

@@ -1,4 +1,4 @@
-// The configuration of `certislam run` and `certislam robot` (JSON): the team, the keyframe
+// The configuration of `certislam run` and `certislam robot` (YAML or JSON): the team, the keyframe
 // source, the actors' settings and, for separate processes, addresses and CURVE keys.
 #pragma once
 
@@ -34,19 +34,25 @@ struct TeamConfig {
 /// The node settings of `robot` (its durable log paths under log_dir).
 actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot);
 
-/// Reads a JSON configuration. Throws std::runtime_error naming the file and the field.
+/// Reads a configuration file (YAML; JSON is YAML too) against TeamConfigKeys(). Throws
+/// std::runtime_error naming the file, the line and the key path.
 TeamConfig LoadTeamConfig(const std::string& path);
 
 /// The wiring of `robot` over tcp (robot mode; CURVE when keys are configured).
 actors::TeamWiring TcpWiring(const TeamConfig& config, int robot);
 
-/// Writes each robot's trajectory (TUM) and report.json into `dir` (none when empty); returns
-/// the JSON report. Per robot, where `source` has a reference: ATE RMSE after aligning the robot
-/// alone (`ate_rmse_own_alignment`), in the team frame without alignment
+/// Writes each robot's trajectory (TUM) and the report (`report_name`; none when empty) into
+/// `dir` (nothing when empty); returns the JSON report. Per robot, where `source` has a reference:
+/// ATE RMSE after aligning the robot alone (`ate_rmse_own_alignment`), in the team frame without
+/// alignment
 /// (`ate_rmse_team_frame`), and the error of its recovered odometry frame (`offset_error_m`,
 /// `offset_error_deg`, worst over its keyframes).
 std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& robots,
                              const std::vector<actors::SolverSnapshot>& snapshots,
-                             const TeamSource& source, std::uint64_t bytes_sent, double seconds);
+                             const TeamSource& source, std::uint64_t bytes_sent, double seconds,
+                             const std::string& report_name);
+
+/// The human summary of a report of WriteTeamOutputs (verdict, per robot errors).
+std::string TeamReportText(const std::string& report_json);
 
 }  // namespace certislam::bin

@@ -3,7 +3,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <nlohmann/json.hpp>
 #include <stdexcept>
 
 #include "slam/io/keyframe_sources_io.h"
@@ -12,8 +11,6 @@
 namespace certislam::bin {
 namespace {
 
-using nlohmann::json;
-
 constexpr double kDegToRad = M_PI / 180.0;
 
 std::runtime_error FieldError(const std::string& config_path, const std::string& field,
@@ -21,42 +18,24 @@ std::runtime_error FieldError(const std::string& config_path, const std::string&
     return std::runtime_error(config_path + ": source." + field + ": " + rule);
 }
 
-/// `robot` -> value of an object keyed by robot id ("0", "1", ...), one entry per robot.
-template <class T, class Parse>
-std::map<int, T> PerRobot(const json& source, const char* field, const std::string& config_path,
-                          const std::vector<int>& robots, Parse parse) {
-    if (!source.contains(field) || !source.at(field).is_object()) {
-        throw FieldError(config_path, field, "missing, or not an object {\"0\": ..., \"1\": ...}");
-    }
-    std::map<int, T> out;
+/// Every robot of the team has an entry in `entries` (source.FIELD.<robot>), and no other robot.
+template <class T>
+void OnePerRobot(const std::map<int, T>& entries, const char* field, const std::string& config_path,
+                 const std::vector<int>& robots) {
     for (const int r : robots) {
-        const std::string key = std::to_string(r);
-        if (!source.at(field).contains(key)) {
-            throw FieldError(config_path, std::string(field) + "." + key,
+        if (!entries.count(r)) {
+            throw FieldError(config_path, std::string(field) + "." + std::to_string(r),
                              "missing (one entry per robot of the team)");
         }
-        out[r] = parse(source.at(field).at(key), std::string(field) + "." + key);
     }
-    if (source.at(field).size() != robots.size()) {
+    if (entries.size() != robots.size()) {
         throw FieldError(config_path, field, "has entries for robots not in the team");
     }
-    return out;
 }
 
-Eigen::Vector3d ReadVector3(const json& j, const char* key, const std::string& config_path,
-                            const std::string& field) {
-    if (!j.contains(key)) return Eigen::Vector3d::Zero();
-    const auto v = j.at(key).get<std::vector<double>>();
-    if (v.size() != 3 || !std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2])) {
-        throw FieldError(config_path, field + "." + key, "must be 3 finite numbers");
-    }
-    return {v[0], v[1], v[2]};
-}
-
-/// "offset": {"xyz_m": [x, y, z], "rpy_deg": [roll, pitch, yaw]} -> T_offset_world.
-Eigen::Isometry3d ReadOffset(const json& j, const std::string& config_path) {
-    const Eigen::Vector3d xyz = ReadVector3(j, "xyz_m", config_path, "offset");
-    const Eigen::Vector3d rpy = ReadVector3(j, "rpy_deg", config_path, "offset") * kDegToRad;
+/// T_offset_world from the offset's translation and roll, pitch, yaw (degrees, Z*Y*X).
+Eigen::Isometry3d Offset(const Eigen::Vector3d& xyz, const Eigen::Vector3d& rpy_deg) {
+    const Eigen::Vector3d rpy = rpy_deg * kDegToRad;
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = (Eigen::AngleAxisd(rpy.z(), Eigen::Vector3d::UnitZ()) *
                   Eigen::AngleAxisd(rpy.y(), Eigen::Vector3d::UnitY()) *
@@ -66,103 +45,43 @@ Eigen::Isometry3d ReadOffset(const json& j, const std::string& config_path) {
     return T;
 }
 
-SourceConfig::Kind ReadKind(const json& source, const std::string& config_path) {
-    const std::string kind = source.value("kind", "simulator");
-    if (kind == "simulator") return SourceConfig::Kind::kSimulator;
-    if (kind == "keyframe_folder") return SourceConfig::Kind::kKeyframeFolder;
-    if (kind == "kitti") return SourceConfig::Kind::kKitti;
-    if (kind == "split") return SourceConfig::Kind::kSplit;
-    if (kind == "rosbag") return SourceConfig::Kind::kRosbag;
-    throw FieldError(
-        config_path, "kind",
-        "\"" + kind + "\" is not one of simulator, keyframe_folder, kitti, split, rosbag");
-}
-
-/// "cloud_topic", "odometry_topic", "max_stamp_gap_s", "cloud_frame" (auto | sensor | odom).
-slam::RosbagSourceConfig ReadRosbagConfig(const json& source, const std::string& config_path) {
-    slam::RosbagSourceConfig rosbag;
-    rosbag.cloud_topic = source.value("cloud_topic", rosbag.cloud_topic);
-    rosbag.odometry_topic = source.value("odometry_topic", rosbag.odometry_topic);
-    rosbag.max_stamp_gap_s = source.value("max_stamp_gap_s", rosbag.max_stamp_gap_s);
-    if (!(rosbag.max_stamp_gap_s >= 0.0) || !std::isfinite(rosbag.max_stamp_gap_s)) {
-        throw FieldError(config_path, "max_stamp_gap_s", "must be a finite number >= 0");
-    }
-    const std::string frame = source.value("cloud_frame", "auto");
-    if (frame == "auto") {
-        rosbag.cloud_frame = slam::RosbagCloudFrame::kAuto;
-    } else if (frame == "sensor") {
-        rosbag.cloud_frame = slam::RosbagCloudFrame::kSensor;
-    } else if (frame == "odom") {
-        rosbag.cloud_frame = slam::RosbagCloudFrame::kOdom;
-    } else {
-        throw FieldError(config_path, "cloud_frame",
-                         "\"" + frame + "\" is not one of auto, sensor, odom");
-    }
-    if (rosbag.cloud_topic.empty() || rosbag.odometry_topic.empty()) {
-        throw FieldError(config_path, rosbag.cloud_topic.empty() ? "cloud_topic" : "odometry_topic",
-                         "must be a non-empty topic name");
-    }
-    return rosbag;
-}
-
 }  // namespace
 
-SourceConfig ReadSourceConfig(const json& source, const std::string& config_path,
-                              const std::vector<int>& robots) {
-    const std::string dir = std::filesystem::path(config_path).parent_path().string();
-    const auto resolve = [&](const std::string& p) {
-        return p.empty() || p.front() == '/' ? p : (std::filesystem::path(dir) / p).string();
+void FinishSourceConfig(const std::string& config_path, const std::vector<int>& robots,
+                        SourceConfig* config) {
+    using Kind = SourceConfig::Kind;
+    const auto non_empty = [&](const std::string& path, const std::string& field) {
+        if (path.empty()) throw FieldError(config_path, field, "missing: must be a path");
     };
-    const auto path_of = [&](const json& j, const std::string& field) {
-        if (!j.is_string() || j.get<std::string>().empty()) {
-            throw FieldError(config_path, field, "must be a non-empty path");
-        }
-        return resolve(j.get<std::string>());
-    };
-    SourceConfig config;
-    config.kind = ReadKind(source, config_path);
-    config.max_keyframes = source.value("max_keyframes", 0);
-    if (config.max_keyframes < 0) throw FieldError(config_path, "max_keyframes", "must be >= 0");
-    switch (config.kind) {
-        case SourceConfig::Kind::kSimulator:
-            config.simulator.seed = source.value("seed", config.simulator.seed);
-            config.simulator.keyframe_spacing_m =
-                source.value("keyframe_spacing_m", config.simulator.keyframe_spacing_m);
-            config.simulator.num_robots = static_cast<int>(robots.size());
-            break;
-        case SourceConfig::Kind::kKeyframeFolder:
-            config.paths = PerRobot<std::string>(source, "paths", config_path, robots, path_of);
-            break;
-        case SourceConfig::Kind::kRosbag:
-            config.paths = PerRobot<std::string>(source, "paths", config_path, robots, path_of);
-            config.rosbag = ReadRosbagConfig(source, config_path);
-            break;
-        case SourceConfig::Kind::kKitti:
-            config.select_keyframes = source.value("select_keyframes", true);
-            config.kitti = PerRobot<KittiSequenceConfig>(
-                source, "sequences", config_path, robots, [&](const json& j, const std::string& f) {
-                    if (!j.is_object()) throw FieldError(config_path, f, "must be an object");
-                    for (const char* k : {"folder", "poses", "calib"}) {
-                        if (!j.contains(k)) throw FieldError(config_path, f + "." + k, "missing");
-                    }
-                    return KittiSequenceConfig{path_of(j.at("folder"), f + ".folder"),
-                                               path_of(j.at("poses"), f + ".poses"),
-                                               path_of(j.at("calib"), f + ".calib")};
-                });
-            break;
-        case SourceConfig::Kind::kSplit:
-            if (!source.contains("path")) throw FieldError(config_path, "path", "missing");
-            config.split_path = path_of(source.at("path"), "path");
-            if (source.value("robots", static_cast<int>(robots.size())) !=
-                static_cast<int>(robots.size())) {
-                throw FieldError(config_path, "robots", "must equal the team's size");
-            }
-            if (source.contains("offset")) {
-                config.T_offset_world = ReadOffset(source.at("offset"), config_path);
-            }
-            break;
+    if (config->kind == Kind::kKeyframeFolder || config->kind == Kind::kRosbag) {
+        OnePerRobot(config->paths, "paths", config_path, robots);
+        for (const auto& [r, path] : config->paths) non_empty(path, "paths." + std::to_string(r));
     }
-    return config;
+    if (config->kind == Kind::kRosbag) {
+        const auto& bag = config->rosbag;
+        if (bag.cloud_topic.empty() || bag.odometry_topic.empty()) {
+            throw FieldError(config_path,
+                             bag.cloud_topic.empty() ? "cloud_topic" : "odometry_topic",
+                             "must be a non-empty topic name");
+        }
+    }
+    if (config->kind == Kind::kKitti) {
+        OnePerRobot(config->kitti, "sequences", config_path, robots);
+        for (const auto& [r, s] : config->kitti) {
+            const std::string field = "sequences." + std::to_string(r) + ".";
+            non_empty(s.folder, field + "folder");
+            non_empty(s.poses, field + "poses");
+            non_empty(s.calib, field + "calib");
+        }
+    }
+    if (config->kind == Kind::kSplit) {
+        non_empty(config->split_path, "path");
+        if (config->split_robots != 0 && config->split_robots != static_cast<int>(robots.size())) {
+            throw FieldError(config_path, "robots", "must equal the team's size");
+        }
+        config->T_offset_world = Offset(config->offset_xyz_m, config->offset_rpy_deg);
+    }
+    config->simulator.num_robots = static_cast<int>(robots.size());
 }
 
 TeamSource::TeamSource(const SourceConfig& config, const std::vector<int>& robots)

@@ -6,7 +6,6 @@
 #include <Eigen/Geometry>
 #include <map>
 #include <memory>
-#include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -37,15 +36,19 @@ struct SourceConfig {
     bool select_keyframes = true;              ///< kKitti: LIO-SAM's 1 m / 0.2 rad selection
     std::string split_path;                    ///< kSplit: the SC-LIO-SAM folder
     slam::RosbagSourceConfig rosbag;           ///< kRosbag: topics and pairing
+    int split_robots = 0;                      ///< kSplit: robots the folder is split into
+    Eigen::Vector3d offset_xyz_m = Eigen::Vector3d::Zero();    ///< kSplit: offset translation
+    Eigen::Vector3d offset_rpy_deg = Eigen::Vector3d::Zero();  ///< kSplit: offset roll pitch yaw
     Eigen::Isometry3d T_offset_world =
         Eigen::Isometry3d::Identity();  ///< kSplit: robot r > 0's
                                         ///< odometry frame is the world moved by this^r
 };
 
-/// Reads the `source` object of `config_path` (relative paths are relative to the file's folder)
-/// for a team of `robots`. Throws std::runtime_error naming "source.<field>" and the rule.
-SourceConfig ReadSourceConfig(const nlohmann::json& source, const std::string& config_path,
-                              const std::vector<int>& robots);
+/// Checks the `source` keys read from `config_path` against the team `robots` (one entry per
+/// robot where the kind needs it) and derives the rest (T_offset_world, the simulator's team
+/// size). Throws std::runtime_error naming "source.<field>" and the rule.
+void FinishSourceConfig(const std::string& config_path, const std::vector<int>& robots,
+                        SourceConfig* config);
 
 /// Each robot's keyframes, and the ground truth where the source has it.
 class TeamSource {

@@ -74,6 +74,49 @@ TEST(EvalCommand, JointAlignmentOfTwoRobotsKeepsTheirRelativeOffset) {
     EXPECT_GT(j["ate_rmse"].get<double>(), 0.5);
 }
 
+/// Writes a KITTI file of n poses on a line along x.
+std::string WriteKittiLine(const std::string& name, int n) {
+    const auto path = (TempDir() / name).string();
+    std::ofstream out(path);
+    for (int k = 0; k < n; ++k) out << "1 0 0 " << k << " 0 1 0 0 0 0 1 0\n";
+    return path;
+}
+
+TEST(EvalCommand, KittiFilesOfDifferentLengthsAreRefusedUnlessAsked) {
+    const auto gt = WriteKittiLine("gt.kitti", 100);
+    const auto est = WriteKittiLine("est.kitti", 40);
+    const std::string args = "--format kitti --gt " + gt + " --est " + est + " --json";
+    const ShellResult refused = Shell(Eval(args));
+    EXPECT_EQ(refused.exit_code, 1) << refused.out;
+    EXPECT_NE(refused.out.find(gt + " has 100 poses but " + est + " has 40"), std::string::npos)
+        << refused.out;
+    const ShellResult allowed = Shell(Eval(args + " --allow-length-mismatch"));
+    ASSERT_EQ(allowed.exit_code, 0) << allowed.out;
+    const auto j = nlohmann::json::parse(allowed.out);
+    EXPECT_EQ(j["pairs"].get<int>(), 40);
+    EXPECT_EQ(j["schema_version"].get<int>(), 1);
+}
+
+TEST(EvalCommand, AllEqualStampsAreRefusedUnlessAsked) {
+    const auto gt = WriteCircle("gt_stamps.tum", 30, 0, 0, 0);
+    const auto est = (TempDir() / "est_same_stamp.tum").string();
+    {
+        std::ifstream in(WriteCircle("est_src.tum", 30, 1, 0, 0));
+        std::ofstream out(est);
+        std::string line;
+        while (std::getline(in, line)) {
+            if (line[0] == '#') continue;
+            out << "0.0" << line.substr(line.find(' ')) << "\n";  // every stamp 0
+        }
+    }
+    const ShellResult refused = Shell(Eval("--gt " + gt + " --est " + est));
+    EXPECT_EQ(refused.exit_code, 1) << refused.out;
+    EXPECT_NE(refused.out.find(est + ": every stamp is equal"), std::string::npos) << refused.out;
+    const ShellResult allowed =
+        Shell(Eval("--gt " + gt + " --est " + est + " --allow-equal-stamps"));
+    EXPECT_EQ(allowed.out.find("every stamp is equal"), std::string::npos) << allowed.out;
+}
+
 TEST(EvalCommand, BadFileGivesFileAndLineAndNonZeroExit) {
     const auto gt = WriteCircle("gt_ok.tum", 10, 0, 0, 0);
     const auto bad = (TempDir() / "bad.tum").string();

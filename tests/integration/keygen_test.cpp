@@ -66,6 +66,21 @@ TEST_F(Keygen, WritesAPublicFileAndASecretFileReadableOnlyByItsOwner) {
     EXPECT_NE(bad.exit_code, 0) << bad.out;
 }
 
+TEST_F(Keygen, ExistingKeyIsKeptUnlessForced) {
+    const std::string prefix = (dir_ / "keys" / "robot1").string();
+    const std::string first = RunKeygen("robot1").at("public_z85");
+    const auto again = Shell(std::string(CERTISLAM_BINARY) + " keygen --out " + prefix + " 2>&1");
+    EXPECT_EQ(again.exit_code, 1) << again.out;
+    EXPECT_NE(again.out.find("robot1.pub exists"), std::string::npos) << again.out;
+    EXPECT_EQ(transport::LoadKeyPair(prefix + ".key").public_z85, first);  // untouched
+    const auto forced =
+        Shell(std::string(CERTISLAM_BINARY) + " keygen --force --json --out " + prefix);
+    ASSERT_EQ(forced.exit_code, 0) << forced.out;
+    const std::string second = nlohmann::json::parse(forced.out).at("public_z85");
+    EXPECT_NE(second, first);
+    EXPECT_EQ(transport::LoadKeyPair(prefix + ".key").public_z85, second);
+}
+
 TEST_F(Keygen, KeysNamedInConfigurationLetAListedRobotDeliverAndNoOtherRobot) {
     for (const char* robot : {"robot1", "robot2", "robot3"}) RunKeygen(robot);
     zmq::context_t server_context;

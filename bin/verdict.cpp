@@ -16,21 +16,6 @@ std::string VerdictName(v1::CertificateVerdict verdict) {
     }
 }
 
-std::string VerdictName(const certify::PoseGraphSolverResult& result) {
-    using Status = certify::PoseGraphSolverResult::Status;
-    switch (result.status) {
-        case Status::kCertified:
-            return "certified";
-        case Status::kNotCertified:
-            return "not optimal";
-        case Status::kNoVerdict:
-            break;
-    }
-    return result.certificate.status == certify::CertificateResult::Status::kNotCritical
-               ? "not critical"
-               : "inconclusive";
-}
-
 std::string CertificatePathName(v1::CertificatePath path) {
     switch (path) {
         case v1::CERTIFICATE_PATH_CENTRALISED:

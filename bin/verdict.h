@@ -4,17 +4,12 @@
 
 #include <string>
 
-#include "certify/pose_graph_solver.h"
 #include "certislam/v1/certificate.pb.h"
 
 namespace certislam::bin {
 
 /// "certified", "not optimal", "inconclusive" or "none" (no certificate yet).
 std::string VerdictName(v1::CertificateVerdict verdict);
-
-/// "certified", "not optimal", "not critical" (no verdict: the gradient is too large) or
-/// "inconclusive" (the eigensolver did not converge) for a `solve`.
-std::string VerdictName(const certify::PoseGraphSolverResult& result);
 
 /// "centralised", "distributed", "fallback" or "none".
 std::string CertificatePathName(v1::CertificatePath path);

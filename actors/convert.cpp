@@ -7,8 +7,8 @@
 #include <map>
 #include <mutex>
 
-#include "slam/io/cloud_compression.h"
 #include "slam/frontend/scan_context_compression.h"
+#include "slam/io/cloud_compression.h"
 
 namespace certislam::actors {
 namespace {

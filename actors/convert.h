@@ -47,7 +47,7 @@ std::optional<slam::Keyframe> DecodeKeyframe(const transport::Message& message);
 /// How a cloud reply carries its cloud.
 enum class CloudWire {
     kFloat32,  ///< float32 xyz (12-byte stride), zero-copy in-process
-    kCompact,  ///< slam/io/cloud_compression.h: 1 cm steps, Morton order, zstd (~3.5x smaller; order lost)
+    kCompact,  ///< slam/io/cloud_compression.h: 1 cm steps, Morton order, zstd (order lost)
 };
 
 /// A cloud reply (found or not) for a cloud request, with the cloud in binary frame 0.
@@ -61,7 +61,7 @@ std::optional<slam::PointCloudPtr> DecodeCloudReply(const transport::Message& me
 /// How a descriptor travels.
 enum class DescriptorWire {
     kFloat32,  ///< every bin and the ring key as float (4.9 kB for 20 x 60)
-    kCompact,  ///< slam/frontend/scan_context_compression.h: 5 cm height steps, zstd (0.5-0.8 kB on real scans)
+    kCompact,  ///< slam/frontend/scan_context_compression.h: 5 cm height steps, zstd
 };
 
 /// A Scan Context descriptor of keyframe `id` on the wire.

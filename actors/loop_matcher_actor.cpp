@@ -240,8 +240,7 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
     return true;
 }
 
-void LoopMatcherActor::Verify(const slam::LoopCandidate& c,
-                              const slam::PointCloud& match_cloud) {
+void LoopMatcherActor::Verify(const slam::LoopCandidate& c, const slam::PointCloud& match_cloud) {
     const slam::PoseId query = c.query, match = c.match;
     const auto result = slam::RegisterScans(*own_clouds_.at(query.index), match_cloud,
                                             slam::YawGuess(c.yaw_rad), config_.registration);

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "slam/core/loop_closure.h"
-#include "slam/frontend/pcm.h"
 #include "slam/core/pose_graph.h"
+#include "slam/frontend/pcm.h"
 #include "slam/frontend/registration.h"
 
 namespace certislam::actors {

@@ -165,8 +165,8 @@ void SolverActor::Changed() {
 }
 
 void SolverActor::Tick() {
-    // Public poses at most every publish_period: with a 2 ms tick every step's poses went out
-    // (at 3 robots the solvers' poses were half of the demo's bytes); the newest go out late.
+    // Public poses at most every publish_period (with a 2 ms tick, sending every step's poses is
+    // a large share of a team's bytes); the newest go out late.
     if (publish_pending_ &&
         std::chrono::steady_clock::now() - last_publish_ >= config_.publish_period) {
         Publish();
@@ -232,7 +232,7 @@ void SolverActor::SendBundle() {
     for (int r : Wiring().robots) final = final && loops_ended_.count(r) > 0;
     // Status, own edges, then the full block that closes the bundle: only once this robot is
     // final. The certifiers check only when every robot is (CertifierActor::Assemble), so an
-    // earlier bundle was bytes for nothing (with 3 robots in the demo most of the bytes sent).
+    // earlier bundle would be bytes for nothing.
     if (final) {
         v1::SolverStatus status;
         *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);

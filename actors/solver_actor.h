@@ -29,9 +29,8 @@ struct SolverActorConfig {
     std::chrono::milliseconds bundle_period{300};  ///< converged block to the certifier, > 0
     /// Public poses after a step at most this often (a later step's poses wait for the next
     /// tick past it; nothing is lost, the newest poses go out), >= 0; 0: after every step.
-    /// Off by default: at 10 ms the demo's solver bytes fell 28.5 -> 22.1 MB, but
-    /// test_actors_solver_actor's silent-neighbour case then saw both robots locally converged
-    /// 0.005-0.2 m away from the optimum (cause not found yet).
+    /// Off by default: with a period, test_actors_solver_actor's silent-neighbour case ends with
+    /// both robots locally converged away from the optimum (cause not found yet).
     std::chrono::milliseconds publish_period{0};
     std::string log_path;  ///< durable log of accepted loop closures (replayed); empty: none
 

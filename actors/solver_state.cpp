@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "slam/core/partition.h"
 #include "slam/backend/rounding.h"
+#include "slam/core/partition.h"
 
 namespace certislam::actors {
 namespace {

@@ -13,9 +13,9 @@
 
 #include "actors/convert.h"
 #include "certify/pipeline/mission.h"
+#include "slam/backend/rbcd.h"
 #include "slam/core/loop_closure.h"
 #include "slam/core/pose_graph.h"
-#include "slam/backend/rbcd.h"
 
 namespace certislam::actors {
 

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "bin/command.h"
-#include "slam/io/trajectory_io.h"
 #include "slam/eval/trajectory_metrics.h"
+#include "slam/io/trajectory_io.h"
 
 namespace certislam::bin {
 namespace {

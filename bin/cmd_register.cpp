@@ -9,9 +9,9 @@
 #include <string>
 
 #include "bin/command.h"
-#include "slam/io/cloud_io.h"
 #include "slam/frontend/registration.h"
 #include "slam/frontend/scan_context.h"
+#include "slam/io/cloud_io.h"
 
 namespace certislam::bin {
 namespace {

@@ -10,8 +10,8 @@
 #include <thread>
 
 #include "bin/command.h"
-#include "bin/demo/demo_output.h"
 #include "bin/config/team_config.h"
+#include "bin/demo/demo_output.h"
 #include "transport/curve.h"
 
 namespace certislam::bin {

@@ -103,8 +103,8 @@ struct BoundSearch {
 /// above it (the eta needed is usually there: torus3D --robots 1), then the verdict at eta,
 /// then bisection on k for the smallest PSD rung. Certified: 1-2 tests usually, at most
 /// 3 + ceil(log2(bound_refinements)); not certified: 1 test when 4 |lambda_min| >= eta, else 3.
-/// Same verdict and bound as stepping down the ladder from eta while it stays PSD (the old
-/// rule, up to 1 + bound_refinements tests). bound_refinements 0: one test at eta.
+/// Same verdict and bound as stepping down the ladder from eta while it stays PSD (up to
+/// 1 + bound_refinements tests). bound_refinements 0: one test at eta.
 BoundSearch VerdictAndBound(double eta, double lambda_min, int bound_refinements,
                             const std::function<bool(double)>& psd_at);
 

@@ -47,8 +47,7 @@ bool FindShift(const SparseMatrix& S, const MinEigenpairConfig& config, Cholesky
     // matrices and would make every shift look valid. Simplicial or supernodal is CHOLMOD's own
     // choice (supernodal when flops / nnz(L) >= Common.supernodal_switch, 40): Debian's ATLAS runs
     // supernodal solves through its reference trsv, so on sparse factors the Lanczos solves are
-    // 2-3x faster simplicial (eigen-solve time, parking-garage: fl/lnz 37, 0.164 -> 0.081 s;
-    // kitti_00: 8, 0.228 -> 0.149 s), while dense ones (torus3D 258) stay supernodal.
+    // faster simplicial, while dense factors (torus3D) stay supernodal.
     // Simplicial LL^T reports a pivot <= 0 as not positive definite only with dbound = 0 (the
     // default; a positive dbound would clamp it and accept indefinite matrices).
     factor->setMode(Eigen::CholmodSimplicialLLt);  // final_ll: LL^T in both forms

@@ -7,8 +7,8 @@
 
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
-#include "slam/core/partition.h"
 #include "slam/backend/rounding.h"
+#include "slam/core/partition.h"
 
 namespace certislam::certify {
 namespace {

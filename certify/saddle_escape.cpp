@@ -5,9 +5,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "slam/core/check.h"
 #include "slam/backend/rbcd.h"
 #include "slam/backend/stiefel.h"
+#include "slam/core/check.h"
 
 namespace certislam::certify {
 

@@ -9,9 +9,9 @@
 
 #include "certify/certificate.h"
 #include "certify/saddle_escape.h"
+#include "slam/backend/rbcd.h"
 #include "slam/core/partition.h"
 #include "slam/core/pose_graph.h"
-#include "slam/backend/rbcd.h"
 
 namespace certislam::certify {
 

@@ -3,7 +3,7 @@
 set -euo pipefail
 
 PACKAGES=(
-  cmake g++ clang clang-format clang-tidy pkg-config git ccache
+  cmake g++ clang clang-format clang-tidy pkg-config git ccache python3
   libeigen3-dev libsuitesparse-dev libboost-dev
   libprotobuf-dev protobuf-compiler libzmq3-dev cppzmq-dev libsodium-dev
   libgtest-dev libgmock-dev libbenchmark-dev libspectra-dev

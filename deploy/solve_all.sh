@@ -16,7 +16,7 @@ out="${OUT:-$root/out/solve_all.jsonl}"
 mkdir -p "$(dirname "$out")"
 : > "$out"
 
-# file f*(here) SE-Sync-seconds (issue 3 anchors measured on the build machine kind; - if none)
+# file f* SE-Sync-seconds (SE-Sync's solve + certify on the build machine kind; - if none)
 read -r -d '' table <<'LIST'
 tinyGrid3D.g2o 18.5193868731 -
 smallGrid3D.g2o 1025.39802075 -

@@ -47,8 +47,7 @@ struct EndpointConfig {
     /// Kernel send and receive buffer of the socket's connections (ZMQ_SNDBUF/ZMQ_RCVBUF),
     /// bytes; 0 keeps the OS default (Linux autotunes up to several MB; an explicit size is
     /// capped by net.core.rmem/wmem_max). 1 MiB: the bytes in flight stay in the L2 cache
-    /// between the sender's and the receiver's kernel copies (BENCHMARKS.md, issue 2: tcp 10 MB
-    /// median 1.09 GB/s vs 0.75 GB/s autotuned on the loaded 2-core machine).
+    /// between the sender's and the receiver's kernel copies (faster than autotuning on loopback).
     int socket_buffer_bytes = 1 << 20;
     std::optional<CurveConfig> curve;  ///< CURVE security (tcp:// edges between robots)
     DecodeLimits limits;               ///< bounds on received frames

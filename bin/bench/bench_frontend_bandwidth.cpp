@@ -5,13 +5,13 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "slam/io/cloud_compression.h"
 #include "slam/frontend/cloud_request_gate.h"
 #include "slam/frontend/downsample.h"
-#include "slam/io/keyframe_sources_io.h"
 #include "slam/frontend/loop_detection.h"
 #include "slam/frontend/loop_verification.h"
 #include "slam/frontend/scan_context_compression.h"
+#include "slam/io/cloud_compression.h"
+#include "slam/io/keyframe_sources_io.h"
 #include "slam/sim/simulator.h"
 
 namespace certislam::bin {

@@ -8,8 +8,8 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
-#include "slam/io/trajectory_io.h"
 #include "slam/eval/trajectory_metrics.h"
+#include "slam/io/trajectory_io.h"
 #include "transport/curve.h"
 
 namespace certislam::bin {

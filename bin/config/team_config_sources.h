@@ -13,9 +13,9 @@
 
 #include "actors/ingest_actor.h"
 #include "slam/core/keyframe.h"
+#include "slam/core/trajectory.h"
 #include "slam/io/rosbag/rosbag_source_io.h"
 #include "slam/sim/simulator.h"
-#include "slam/core/trajectory.h"
 
 namespace certislam::bin {
 

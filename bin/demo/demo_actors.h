@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "slam/core/keyframe.h"
-#include "slam/mapping/mesh.h"
 #include "slam/core/trajectory.h"
+#include "slam/mapping/mesh.h"
 
 namespace certislam::bin {
 

@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "slam/mapping/mesh.h"
 #include "slam/core/trajectory.h"
+#include "slam/mapping/mesh.h"
 
 namespace certislam::bin {
 

@@ -4,14 +4,14 @@
 #include <chrono>
 #include <stdexcept>
 
-#include "slam/core/check.h"
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
 #include "slam/backend/lm_baseline.h"
 #include "slam/backend/one_time_alignment.h"
-#include "slam/core/partition.h"
 #include "slam/backend/rounding.h"
 #include "slam/backend/stiefel.h"
+#include "slam/core/check.h"
+#include "slam/core/partition.h"
 
 namespace certislam::certify {
 using namespace slam;  // NOLINT(google-build-using-namespace): the pipeline is all slam types

@@ -9,13 +9,13 @@
 #include <vector>
 
 #include "certify/certificate.h"
-#include "slam/core/keyframe.h"
 #include "slam/backend/lm_baseline.h"
-#include "slam/core/loop_closure.h"
-#include "slam/frontend/loop_detection.h"
-#include "slam/core/pose_graph.h"
 #include "slam/backend/rbcd.h"
+#include "slam/core/keyframe.h"
+#include "slam/core/loop_closure.h"
+#include "slam/core/pose_graph.h"
 #include "slam/core/trajectory.h"
+#include "slam/frontend/loop_detection.h"
 
 namespace certislam::certify {
 

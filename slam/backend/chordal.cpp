@@ -7,8 +7,8 @@
 #include <random>
 #include <vector>
 
-#include "slam/core/check.h"
 #include "slam/backend/rounding.h"
+#include "slam/core/check.h"
 
 namespace certislam::slam {
 namespace {

@@ -5,9 +5,9 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "slam/backend/rbcd.h"
 #include "slam/core/partition.h"
 #include "slam/core/pose_graph.h"
-#include "slam/backend/rbcd.h"
 
 namespace certislam::slam {
 

@@ -23,13 +23,11 @@ struct RbcdConfig {
     int block_max_rtr_iterations = 5;    ///< trust-region steps per block update, >= 1
     int max_tcg_iterations = 100;        ///< Steihaug-CG iterations per trust-region step, >= 1
     /// Truncated CG stops at the latest when its residual is <= this * the trust region's
-    /// gradient tolerance (Manopt's r0 min(r0, 0.1) alone asks for far more accuracy than the
-    /// stopping test needs once the gradient is small: parking-garage --robots 1 took 1.3-1.7
-    /// instead of 0.95 CPU s). 0: Manopt's rule alone, so a solve ends far below its tolerance
-    /// (the actors keep 0: a team's in-process and multi-process runs must agree to 1e-6, and
-    /// with 0.5 they differed by up to 2e-6 in 2 of 12 runs).
-    /// certify::StaircaseConfig's default (`certislam solve` without --robust) sets 0.5; the
-    /// GNC inner solves of --robust keep 0. In [0, 1).
+    /// gradient tolerance (Manopt's r0 min(r0, 0.1) alone asks for more accuracy than the
+    /// stopping test needs once the gradient is small). 0: Manopt's rule alone, so a solve ends
+    /// far below its tolerance; the actors keep 0 because a team's in-process and multi-process
+    /// runs must agree to 1e-6. certify::StaircaseConfig's default (`certislam solve` without
+    /// --robust) sets 0.5; the GNC inner solves of --robust keep 0. In [0, 1).
     double tcg_residual_floor = 0.0;
     int max_iterations = 2000;   ///< outer RBCD iterations, >= 1
     double max_seconds = 600.0;  ///< wall-clock limit, > 0
@@ -39,9 +37,8 @@ struct RbcdConfig {
     double precon_regulariser = 1e-8;  ///< Cholesky of Q_aa + this * max diag(Q_aa) I, > 0
     /// Precondition each block's truncated CG with the Cholesky of its exact Hessian matrix
     /// S_aa = Q_aa - Lambda_a(X) (+ a small shift), refactorised per trust-region iterate;
-    /// false: Q_aa alone (the factor above). Off by default: measured faster on parking-garage,
-    /// slower on city10000 and cubicle (BENCHMARKS.md, issue 3, h2), and it moved the actor
-    /// test's 2-robot result 1.02e-5 from the central one (tolerance 1e-5).
+    /// false: Q_aa alone (the factor above). Off by default: it is not faster on every graph,
+    /// and it moves a 2-robot team's result beyond 1e-5 of the central one.
     bool hessian_preconditioner = false;
     /// Each block update eliminates its translations exactly (SE-Sync's reduced problem): the
     /// trust region runs on the rotations with the Schur complement of Q_TT, and the Q_aa
@@ -60,23 +57,21 @@ struct RbcdConfig {
     /// the finish eliminates the translations of the whole graph: each Hessian-vector product
     /// then also needs Q_TT^{-1} (the scalar translation Laplacian) applied to r vectors, done
     /// here by one global sparse Cholesky. On a network that would be an all-gather or an
-    /// inner distributed CG (29-36 Schwarz-preconditioned iterations per solve on parking-garage,
-    /// a scratch measurement in BENCHMARKS.md), so this in-process finish is distributed except for
-    /// that solve. 5 measured fastest of {5, 10, 30} on sphere2500, torus3D, cubicle, city10000 and
-    /// parking-garage with 5 robots (BENCHMARKS.md). 0 disables; >= 0.
+    /// inner distributed CG, far slower than one Cholesky solve, so this in-process finish is
+    /// distributed except for that solve. 0 disables; >= 0.
     int polish_after_iterations = 5;
     /// The finish's preconditioner (slam/schwarz_preconditioner.h): block Jacobi (each robot's
     /// own Cholesky of Q_aa) until one truncated CG needs more than polish_escalate_after
     /// iterations, then overlapping additive Schwarz, each robot's domain its own poses and those
-    /// within polish_overlap edges of them (parking-garage --robots 5: 2 measured faster than 1;
-    /// more only grows the domains). In [0, 8]; 0: block Jacobi throughout.
+    /// within polish_overlap edges of them (wider overlap needs fewer CG iterations but grows
+    /// every domain's factor). In [0, 8]; 0: block Jacobi throughout.
     int polish_overlap = 2;
     /// Truncated-CG iterations after which the finish's preconditioner escalates to
     /// polish_overlap (a CG run is cut there while it can still escalate), >= 1.
     int polish_escalate_after = 50;
     int polish_max_rtr_iterations = 300;  ///< trust-region steps of the finish, >= 1
-    /// Steihaug-CG iterations per step of the finish, >= 1 (with block Jacobi alone
-    /// parking-garage --robots 5 needed up to 2000; with the overlapping preconditioner ~220).
+    /// Steihaug-CG iterations per step of the finish, >= 1 (high: with block Jacobi alone an
+    /// ill-conditioned graph needs thousands).
     int polish_max_tcg_iterations = 2000;
     /// Second stop, for the slow linear tail of block coordinate descent: f fell by at most
     /// this * max(1, f) over the last `cost_window` iterations (the remaining gap is then far

@@ -8,10 +8,10 @@
 #include <cmath>
 #include <limits>
 
-#include "slam/core/check.h"
 #include "slam/backend/schwarz_preconditioner.h"
 #include "slam/backend/sparse_product.h"
 #include "slam/backend/stiefel.h"
+#include "slam/core/check.h"
 
 namespace certislam::slam {
 namespace {
@@ -59,9 +59,9 @@ double CostOnly(const BlockProblem& p, const Eigen::MatrixXd& X) {
 }
 
 // f(X_new) - f(X) = <D Q, X_new + X> + 2 <D, G> with D = X_new - X, and its rounding noise.
-// Subtracting two costs loses everything on metric-scale maps with a small f (parking-garage:
-// tr(X Q X^T) is a sum of terms 1e6 times larger than f, the difference of two evaluations was
-// noise of 4e-9 against model decreases of 1e-11, and every step near the optimum was rejected).
+// Subtracting two costs loses everything on metric-scale maps with a small f (parking-garage):
+// tr(X Q X^T) sums terms far larger than f, so near the optimum the difference of two
+// evaluations is rounding noise larger than the model decrease, and every step is rejected.
 struct CostChange {
     double value = 0.0;
     double noise = 0.0;
@@ -130,8 +130,8 @@ struct TcgResult {
 // Steihaug-Toint truncated CG in the preconditioner's norm (Manopt tCG, theta = 1, kappa = 0.1).
 // Manopt's residual target r0 min(r0, kappa) uses the gradient's absolute size: on a problem
 // whose gradient is already small it asks for far more accuracy than the stopping test needs
-// (parking-garage: relative residual 4e-6 for a gradient that had to drop 30x). The target is
-// therefore never below `floor` (BlockRtrOptions::tcg_residual_floor * the gradient tolerance).
+// (parking-garage). The target is therefore never below `floor`
+// (BlockRtrOptions::tcg_residual_floor * the gradient tolerance).
 TcgResult TruncatedCg(const BlockProblem& p, const Iterate& it, double radius, int max_iter,
                       double floor) {
     TcgResult out;

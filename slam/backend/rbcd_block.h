@@ -15,16 +15,16 @@ class SchwarzPreconditioner;
 
 /// Sparse Cholesky of Q_aa + lambda I, factorised once per block, used as preconditioner.
 /// CHOLMOD: its solves dominate the solve time. Factors solved hundreds of times on r right-hand
-/// sides use its simplicial mode: with Debian's ATLAS (reference trsm) the supernodal solves were
-/// 2.2x slower on parking-garage's Q (1.27 against 0.58 ms, r = 3), Eigen's simplicial 2.5x.
+/// sides use its simplicial mode: with Debian's ATLAS (reference trsm) supernodal solves, and
+/// Eigen's simplicial ones, are slower on these sparse factors.
 using BlockFactor = Eigen::CholmodDecomposition<Eigen::SparseMatrix<double>, Eigen::Lower>;
 
 /// Sparse Cholesky of the matrix of the block's exact Riemannian Hessian,
 /// S_aa(X) = Q_aa - blockdiag(Lambda_a(X)) + mu D (D: identity on rotation entries, plus an
 /// anchor on the first translation entry for the translation gauge), refactorised (numeric
 /// only; one symbolic analysis) at every trust-region iterate. The Hessian is 2 Proj(V S_aa):
-/// Q_aa alone misses the Lambda term and left truncated CG at its 100-iteration cap on
-/// parking-garage (linear convergence); S_aa makes tCG nearly exact in a few iterations.
+/// Q_aa alone misses the Lambda term, so truncated CG runs to its cap on ill-conditioned graphs
+/// (parking-garage); S_aa makes tCG nearly exact in a few iterations.
 /// mu starts at min_shift * max diag(Q_aa) and grows by 100x while the factorization fails (S
 /// indefinite away from an optimum); after max_attempts failures the caller falls back to Q_aa.
 class HessianPreconditioner {

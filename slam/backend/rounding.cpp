@@ -3,8 +3,8 @@
 
 #include <Eigen/Dense>
 
-#include "slam/core/check.h"
 #include "slam/backend/chordal.h"
+#include "slam/core/check.h"
 
 namespace certislam::slam {
 

@@ -7,17 +7,16 @@
 #include <memory>
 #include <vector>
 
-#include "slam/core/partition.h"
 #include "slam/backend/rbcd_block.h"
+#include "slam/core/partition.h"
 
 namespace certislam::slam {
 
 /// P^{-1} = sum_k R_k^T (R_k Q_s R_k^T)^{-1} R_k with Q_s = Q + shift I, applied to the
 /// (d+1)n-long rows of X-shaped matrices. R_k selects robot k's extended domain: its own poses
 /// and every pose within `overlap` edges of them. overlap 0 is block Jacobi (each robot's own
-/// Q_aa). Block Jacobi misses the stiff inter-robot loop closures: on parking-garage with 5
-/// robots, conjugate gradients on Q_s itself needed 6251 iterations with it, 191 with overlap 1
-/// and 92 with overlap 2 (a coarse level on each robot's rigid motions brought 6251 to 4091 only).
+/// Q_aa). Block Jacobi misses the stiff inter-robot loop closures, which an overlap of one or
+/// two edges takes in (a coarse level on each robot's rigid motions helps far less).
 /// Every R_k Q_s R_k^T is a principal submatrix of Q_s (PSD plus shift I) and the domains cover
 /// every pose, so P^{-1} is symmetric positive definite; and P^{-1} dominates block Jacobi's
 /// inverse (P <= P_BJ), so a trust-region radius measured in block Jacobi's norm stays valid
@@ -30,13 +29,11 @@ namespace certislam::slam {
 /// as a Hessian-vector product does) and returns its contribution there (a second exchange).
 /// With overlap 2 the domain also holds poses one edge further, private poses of neighbours and
 /// possibly poses of robots two hops away in the robot graph: the same two exchanges, with
-/// those robots too (parking-garage, 5 robots: 5-27 such private poses per robot; city10000
-/// about 500).
+/// those robots too.
 ///
-/// The overlap costs: each robot's domain grows (city10000 with 5 robots: 10000 poses in all
-/// with overlap 0, 22029 with 1, 31632 with 2, and an application 3.5, 11.4 and 26.2 ms) where
-/// block Jacobi already needs few iterations. So the preconditioner starts as block Jacobi and
-/// escalates to its largest overlap once a conjugate-gradient run needs more than a threshold.
+/// The overlap costs: each robot's domain, and so each application, grows where block Jacobi
+/// already needs few iterations. So the preconditioner starts as block Jacobi and escalates to
+/// its largest overlap once a conjugate-gradient run needs more than a threshold.
 class SchwarzPreconditioner {
   public:
     /// Q the connection Laplacian ((d+1)n square, borrowed for the object's lifetime); every

@@ -26,7 +26,7 @@ void Kernel(const double* v, const int* outer, const int* inner, const int* nnz,
 }
 
 // r = 3 (the staircase's usual rank in 3-D) spelled out: GCC vectorises an array of three
-// accumulators as one pair and one single and is then 2x slower than three scalars.
+// accumulators as one pair and one single and is then slower than three scalars.
 void Kernel3(const double* v, const int* outer, const int* inner, const int* nnz,
              const double* values, Eigen::Index n, double* out) {
     for (Eigen::Index j = 0; j < n; ++j) {

@@ -8,10 +8,9 @@
 namespace certislam::slam {
 
 /// V A with V r x m (column-major, as Eigen::MatrixXd) and A m x n. Same result as Eigen's
-/// V * A to rounding, 2.4-5x faster on parking-garage's Q for r = 3, 4, 5, 8 (`certislam bench
-/// backend --rank R`, BENCHMARKS.md issue 3): each output column is one pass over A's column
-/// with r accumulators held in registers, where Eigen's dense x sparse product walks A once per
-/// row of V.
+/// V * A to rounding, and faster (`certislam bench backend` compares them): each output column
+/// is one pass over A's column with r accumulators held in registers, where Eigen's dense x
+/// sparse product walks A once per row of V.
 Eigen::MatrixXd DenseTimesSparse(const Eigen::MatrixXd& V, const Eigen::SparseMatrix<double>& A);
 
 }  // namespace certislam::slam

@@ -4,8 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "slam/core/check.h"
 #include "slam/backend/sparse_product.h"
+#include "slam/core/check.h"
 
 namespace certislam::slam {
 

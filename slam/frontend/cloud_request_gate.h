@@ -40,7 +40,7 @@ class CloudRequestGate {
 
   private:
     CloudRequestGateConfig config_;
-    std::vector<LoopCandidate> admitted_;       // open requests, in admission order
+    std::vector<LoopCandidate> admitted_;          // open requests, in admission order
     std::vector<std::pair<int, PoseId>> fetched_;  // (querying robot, match) clouds at hand
 };
 

@@ -58,12 +58,11 @@ class DescriptorDatabase {
     /// nearest ring keys among entries passing `accept` (all when empty) and not recent own
     /// keyframes, scored by the SC distance; those under max_distance, best first.
     std::vector<PlaceMatch> Query(const PoseId& query_id, const ScanContext& descriptor,
-                                     const std::function<bool(const PoseId&)>& accept = {}) const;
+                                  const std::function<bool(const PoseId&)>& accept = {}) const;
 
     /// The best candidate of Query, if any.
-    std::optional<PlaceMatch> Detect(
-        const PoseId& query_id, const ScanContext& descriptor,
-        const std::function<bool(const PoseId&)>& accept = {}) const;
+    std::optional<PlaceMatch> Detect(const PoseId& query_id, const ScanContext& descriptor,
+                                     const std::function<bool(const PoseId&)>& accept = {}) const;
 
     /// The settings in use.
     const DescriptorDatabaseConfig& config() const { return config_; }

@@ -13,7 +13,7 @@ namespace certislam::slam {
 /// Settings of the compact descriptor encoder.
 struct ScanContextCompressionConfig {
     double height_step_m = 0.05;  ///< quantisation of bin heights, (0, 1]: error <= step / 2
-    int zstd_level = 19;  ///< zstd level, [1, 19]: 19 ~150 us/encode, 3 ~35 us but ~7 % larger
+    int zstd_level = 19;          ///< zstd level, [1, 19]: higher is smaller and slower to encode
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;

@@ -49,8 +49,8 @@ void CloudCompressionConfig::Validate() const {
                                     std::to_string(resolution_m) + ": must be in (0, 1]");
     }
     if (zstd_level < 1 || zstd_level > 19) {
-        throw std::invalid_argument("CloudCompressionConfig.zstd_level = " + std::to_string(zstd_level) +
-                                    ": must be in [1, 19]");
+        throw std::invalid_argument("CloudCompressionConfig.zstd_level = " +
+                                    std::to_string(zstd_level) + ": must be in [1, 19]");
     }
 }
 

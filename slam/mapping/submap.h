@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "slam/core/keyframe.h"
-#include "slam/mapping/mesh.h"
 #include "slam/core/pose_graph.h"
+#include "slam/mapping/mesh.h"
 #include "slam/mapping/tsdf.h"
 
 namespace certislam::slam {

@@ -91,7 +91,7 @@ class MissionGenerator {
     int num_robots() const { return static_cast<int>(truth_.size()); }  ///< robots
     /// Keyframes of `robot`.
     int num_keyframes(int robot) const { return static_cast<int>(truth_.at(robot).size()); }
-    /// Keyframe `index` of `robot` with its cloud (about 10 ms).
+    /// Keyframe `index` of `robot` with its cloud (ray cast on every call).
     SimulatedKeyframe Generate(int robot, int index) const;
     /// Keyframe without its cloud (pose and stamp only).
     Keyframe PoseOnly(int robot, int index) const;

@@ -1,5 +1,5 @@
-// Cloud replies on the wire: the compact form (slam/io/cloud_compression.h) is the default, decodes to
-// the same points within half a centimetre and is several times smaller than float32; the
+// Cloud replies on the wire: the compact form (slam/io/cloud_compression.h) is the default, decodes
+// to the same points within half a centimetre and is several times smaller than float32; the
 // float32 form still decodes; a compact frame that lies about its count is dropped.
 #include <gtest/gtest.h>
 

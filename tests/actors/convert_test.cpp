@@ -114,14 +114,15 @@ TEST(Convert, ScanContextRoundTripsAndRejectsWrongSizes) {
 
 TEST(Convert, CompactScanContextIsSmallCloseAndRejectsForgedBytes) {
     constexpr double kHalfStepM = 0.025 + 1e-6;  // 5 cm height steps
-    constexpr double kMaxDistanceChange = 0.01;  // slam/frontend/scan_context_compression's own bound
+    constexpr double kMaxDistanceChange =
+        0.01;  // slam/frontend/scan_context_compression's own bound
     const auto kf = MakeKeyframe(20000);
     const auto sc = slam::MakeScanContext(*kf.cloud, slam::ScanContextConfig{});
     std::string compact_bytes;
     std::string float_bytes;
     ASSERT_TRUE(ToProto(sc, {1, 5}).SerializeToString(&compact_bytes));
     ASSERT_TRUE(ToProto(sc, {1, 5}, DescriptorWire::kFloat32).SerializeToString(&float_bytes));
-    // A random synthetic cloud compresses least (real scans: 6-10x, tests/slam).
+    // A random synthetic cloud compresses least (real scans: tests/slam/frontend).
     EXPECT_LT(compact_bytes.size() * 2, float_bytes.size());
     v1::ScanContextDescriptor parsed;
     ASSERT_TRUE(parsed.ParseFromString(compact_bytes));

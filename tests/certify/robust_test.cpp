@@ -10,8 +10,8 @@
 
 #include "certify/pose_graph_solver.h"
 #include "slam/backend/chordal.h"
-#include "slam/io/multirobot_io.h"
 #include "slam/core/partition.h"
+#include "slam/io/multirobot_io.h"
 
 namespace certislam::slam {
 namespace {

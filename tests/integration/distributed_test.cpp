@@ -115,7 +115,7 @@ bool Bindable(int port) {
 /// ephemeral range (32768-60999). Inside it, a ZeroMQ client that retries a port not yet bound
 /// (a peer starting, or restarting after kill -9) can be given that very port as its source and
 /// connect to itself (TCP self-connection): the robot that should bind it then fails with
-/// "Address already in use" (seen here: robot 0 exited at 0.27 s, robot 1 waited 120 s), and
+/// "Address already in use" (and its peer waits until its timeout), and
 /// libzmq 4.3 drops such a connection for good (zeromq/libzmq#4588).
 int FreePortBase() {
     constexpr int kLowest = 20000, kHighest = 32000, kStride = 20;  // below 32768

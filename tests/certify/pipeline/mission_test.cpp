@@ -8,8 +8,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "slam/sim/simulator.h"
 #include "slam/eval/trajectory_metrics.h"
+#include "slam/sim/simulator.h"
 
 namespace certislam::certify {
 namespace {

@@ -10,9 +10,9 @@
 
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
-#include "slam/io/g2o_io.h"
-#include "slam/core/partition.h"
 #include "slam/backend/rounding.h"
+#include "slam/core/partition.h"
+#include "slam/io/g2o_io.h"
 
 namespace certislam::slam {
 namespace {
@@ -66,11 +66,9 @@ TEST_P(RbcdReachesOptimum, RoundedCostWithinRelativeGap) {
     EXPECT_GE(gap, -c.below_tol);
 }
 
-// parking-garage is the ill-conditioned one (metric scale, f* = 1.26): with translations kept
-// explicit, truncated CG stalled at its cap and one robot took 16 s; with them eliminated it is
-// about a second. With 5 robots the finish's block-Jacobi preconditioner needed ~2000 CG
-// iterations per step (about 15 s); with the overlapping Schwarz one this case takes 5-15 s in
-// this test (rank 5, no CG residual floor; machine load).
+// parking-garage is the ill-conditioned one (metric scale, f* = 1.26): it needs translations
+// eliminated and, with 5 robots, the overlapping Schwarz finish to converge in reasonable time;
+// it is the slowest case here (rank 5, no CG residual floor).
 INSTANTIATE_TEST_SUITE_P(
     SmallFiles, RbcdReachesOptimum,
     testing::Values(Case{"tinyGrid3D.g2o", 18.5193868731, 1},

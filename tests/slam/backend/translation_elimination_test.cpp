@@ -10,10 +10,10 @@
 
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
-#include "slam/io/g2o_io.h"
-#include "slam/core/partition.h"
 #include "slam/backend/rbcd.h"
 #include "slam/backend/stiefel.h"
+#include "slam/core/partition.h"
+#include "slam/io/g2o_io.h"
 
 namespace certislam::slam {
 namespace {

@@ -13,9 +13,9 @@
 #include <sstream>
 #include <string>
 
-#include "slam/io/cloud_io.h"
 #include "slam/frontend/downsample.h"
 #include "slam/frontend/scan_context.h"
+#include "slam/io/cloud_io.h"
 
 namespace certislam::slam {
 namespace {

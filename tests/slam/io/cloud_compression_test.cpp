@@ -11,9 +11,9 @@
 #include <fstream>
 #include <random>
 
-#include "slam/io/cloud_io.h"
 #include "slam/frontend/downsample.h"
 #include "slam/frontend/registration.h"
+#include "slam/io/cloud_io.h"
 
 namespace certislam::slam {
 namespace {

@@ -18,6 +18,9 @@ fi
 echo "== layers (no include and no link edge runs upward)"
 python3 "$root/deploy/check_layers.py"
 
+echo "== sizes (no source file over 500 lines, no function over 80)"
+python3 "$root/deploy/check_sizes.py"
+
 echo "== build"
 "$root/deploy/build.sh" -DCERTISLAM_WERROR=ON -DCERTISLAM_BUILD_TESTS=ON
 

@@ -60,6 +60,31 @@ struct Row {
     double ratio;  // to the kernel's first variant
 };
 
+void PrintRows(const std::vector<Row>& rows, bool json, const std::string& file, int rank,
+               int robots, int poses, const Eigen::SparseMatrix<double>& Q) {
+    if (json) {
+        nlohmann::json j{{"file", file},
+                         {"rank", rank},
+                         {"robots", robots},
+                         {"poses", poses},
+                         {"q_nonzeros", Q.nonZeros()}};
+        for (const Row& r : rows) {
+            j["kernels"].push_back(
+                {{"kernel", r.kernel}, {"variant", r.variant}, {"ms", r.ms}, {"ratio", r.ratio}});
+        }
+        std::printf("%s\n", j.dump().c_str());
+        return;
+    }
+    std::printf("%s: %d poses, Q %ld x %ld with %ld nonzeros, r = %d, %d robots\n", file.c_str(),
+                poses, static_cast<long>(Q.rows()), static_cast<long>(Q.cols()),
+                static_cast<long>(Q.nonZeros()), rank, robots);
+    std::printf("| kernel | variant | ms per call | ratio to the first |\n|---|---|---|---|\n");
+    for (const Row& r : rows) {
+        std::printf("| %s | %s | %.3f | %.2f |\n", r.kernel.c_str(), r.variant.c_str(), r.ms,
+                    r.ratio);
+    }
+}
+
 int RunBackendBench(int argc, char** argv) {
     CLI::App app{"Times the back end's per-iteration kernels on a g2o file"};
     std::string file = "../shared/data/g2o/parking-garage.g2o";  // from the repository root
@@ -121,27 +146,7 @@ int RunBackendBench(int argc, char** argv) {
     add("preconditioner", "block Jacobi (overlap 0)", [&] { out = jacobi.Solve(B); });
     add("preconditioner", "Schwarz overlap 2", [&] { out = schwarz.Solve(B); });
 
-    if (json) {
-        nlohmann::json j{{"file", file},
-                         {"rank", rank},
-                         {"robots", robots},
-                         {"poses", read.graph.n},
-                         {"q_nonzeros", Q.nonZeros()}};
-        for (const Row& r : rows) {
-            j["kernels"].push_back(
-                {{"kernel", r.kernel}, {"variant", r.variant}, {"ms", r.ms}, {"ratio", r.ratio}});
-        }
-        std::printf("%s\n", j.dump().c_str());
-        return 0;
-    }
-    std::printf("%s: %d poses, Q %ld x %ld with %ld nonzeros, r = %d, %d robots\n", file.c_str(),
-                read.graph.n, static_cast<long>(Q.rows()), static_cast<long>(Q.cols()),
-                static_cast<long>(Q.nonZeros()), rank, robots);
-    std::printf("| kernel | variant | ms per call | ratio to the first |\n|---|---|---|---|\n");
-    for (const Row& r : rows) {
-        std::printf("| %s | %s | %.3f | %.2f |\n", r.kernel.c_str(), r.variant.c_str(), r.ms,
-                    r.ratio);
-    }
+    PrintRows(rows, json, file, rank, robots, read.graph.n, Q);
     return 0;
 }
 

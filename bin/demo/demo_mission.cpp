@@ -1,4 +1,5 @@
-// The demo's driver over slam/ pieces: simulator -> mission pipeline -> TSDF -> evaluation.
+// The demo's driver over slam/ pieces: simulator -> mission pipeline -> TSDF -> evaluation;
+// the algorithms live in slam/ and certify/, this file only orchestrates and reports.
 #include "bin/demo/demo_mission.h"
 
 #include <algorithm>
@@ -14,11 +15,13 @@
 #include "bin/demo/demo_plot.h"
 #include "bin/demo/demo_report.h"
 #include "certify/pipeline/mission.h"
+#include "slam/core/partition.h"
 #include "slam/eval/trajectory_metrics.h"
 #include "slam/io/g2o_io.h"
 #include "slam/io/trajectory_io.h"
-#include "slam/mapping/tsdf.h"
+#include "slam/mapping/keyframe_fusion.h"
 #include "slam/sim/simulator.h"
+#include "slam/sim/tunnel_odometry.h"
 
 namespace certislam::bin {
 namespace {
@@ -85,54 +88,6 @@ SimulatedTeam Simulate(const DemoOptions& options, ProgressBar* bar) {
     return team;
 }
 
-/// One method scored: per-robot ATE RMSE under one joint SE(3) alignment of the whole team,
-/// and its trajectories moved by that alignment (for the plot).
-struct Scored {
-    std::vector<double> rmse;
-    std::vector<slam::Trajectory> aligned;
-};
-
-Scored Score(const SimulatedTeam& team, const std::vector<slam::Trajectory>& est) {
-    std::vector<slam::AssociatedPoses> pairs;
-    for (size_t r = 0; r < est.size(); ++r) {
-        pairs.push_back(slam::Associate(team.ground_truth[r], est[r], {}));
-    }
-    const slam::TeamErrors errors = slam::EvaluateTeam(pairs, true);
-    Scored out;
-    for (const auto& e : errors.robots) out.rmse.push_back(e.ate_rmse);
-    out.aligned = est;
-    for (auto& traj : out.aligned) {
-        for (auto& p : traj) p.T_world_body = errors.T_gt_est * p.T_world_body;
-    }
-    return out;
-}
-
-/// LiDAR odometry is degenerate along a featureless tunnel: inside it the along-track motion
-/// is under-observed. The simulator's drift model has no such effect, so the demo adds it:
-/// every odometry step whose true midpoint lies in the tunnel has its translation shortened
-/// by `slip`, and the robot's odometry is re-integrated. Returns the steps degraded.
-int DegradeOdometryInTunnel(const slam::SimStreets& streets, double slip, SimulatedTeam* team) {
-    int degraded = 0;
-    for (size_t r = 0; r < team->robots.size(); ++r) {
-        auto& kfs = team->robots[r];
-        Eigen::Isometry3d T_prev_old =
-            kfs.empty() ? Eigen::Isometry3d::Identity() : kfs.front().T_odom_sensor;
-        for (size_t i = 1; i < kfs.size(); ++i) {
-            Eigen::Isometry3d step = T_prev_old.inverse() * kfs[i].T_odom_sensor;
-            T_prev_old = kfs[i].T_odom_sensor;
-            const Eigen::Vector3d mid =
-                0.5 * (team->truth[r][i - 1].translation() + team->truth[r][i].translation());
-            if (mid.x() > streets.tunnel_x_begin && mid.x() < streets.tunnel_x_end &&
-                std::abs(mid.y()) < streets.tunnel_half_width) {
-                step.translation() *= 1.0 - slip;
-                ++degraded;
-            }
-            kfs[i].T_odom_sensor = kfs[i - 1].T_odom_sensor * step;
-        }
-    }
-    return degraded;
-}
-
 /// Odometry alone, started at each robot's true initial pose in the team frame (its best case).
 std::vector<slam::Trajectory> OdometryInTeamFrame(const SimulatedTeam& team,
                                                   const std::vector<slam::Trajectory>& odom) {
@@ -143,31 +98,10 @@ std::vector<slam::Trajectory> OdometryInTeamFrame(const SimulatedTeam& team,
     return out;
 }
 
-slam::TriangleMesh FuseMesh(const SimulatedTeam& team, const std::vector<slam::Trajectory>& traj,
-                            double voxel_m, ProgressBar* bar) {
-    slam::TsdfConfig config;
-    config.voxel_size_m = voxel_m;
-    slam::TsdfVolume volume(config);
-    int total = 0, done = 0;
-    for (const auto& robot : team.robots) total += static_cast<int>(robot.size());
-    for (size_t r = 0; r < team.robots.size(); ++r) {
-        for (size_t i = 0; i < team.robots[r].size() && i < traj[r].size(); ++i) {
-            volume.Integrate(*team.robots[r][i].cloud, traj[r][i].T_world_body);
-            bar->Update("fusing TSDF map", 0.8 + 0.15 * ++done / total);
-        }
-    }
-    return volume.ExtractMesh();
-}
-
 /// Bytes of the RBCD exchange: every iteration each robot sends its public poses (r x 4
 /// doubles each) to its neighbours.
 std::int64_t RbcdBytes(const slam::PoseGraph& graph, int iterations, int rank) {
-    std::vector<bool> is_public(static_cast<size_t>(graph.n), false);
-    for (const auto& e : graph.edges) {
-        if (graph.ids[e.i].robot != graph.ids[e.j].robot) is_public[e.i] = is_public[e.j] = true;
-    }
-    std::int64_t count = 0;
-    for (bool p : is_public) count += p ? 1 : 0;
+    const std::int64_t count = slam::CountPublicPoses(graph);
     return count * iterations * rank * 4 * 8;
 }
 
@@ -239,9 +173,10 @@ void FillCertificate(const certify::MissionResult& mission, const SimulatedTeam&
     report->local_search_aligned = LocalSearchReport(
         "the one-time alignment (DiSCo-style first-encounter frames)",
         mission.local_search_from_alignment, mission.solution.cost,
-        Score(team, certify::SplitTrajectories(
-                        mission.graph, mission.local_search_from_alignment.poses, team.robots))
-            .rmse);
+        slam::AlignTeam(team.ground_truth,
+                        certify::SplitTrajectories(
+                            mission.graph, mission.local_search_from_alignment.poses, team.robots))
+            .ate_rmse);
 }
 
 void FillLoopsAndBytes(const certify::MissionResult& mission, DemoReport* report) {
@@ -332,6 +267,32 @@ void FillFromActors(const ActorMissionResult& run, const std::vector<double>& rm
     }
 }
 
+/// Table I's rows and the plot: each method scored under its own joint alignment of the team.
+DemoPlotInput ScoreMethods(
+    const DemoOptions& options, const SimulatedTeam& team, const certify::MissionResult& mission,
+    const std::vector<std::pair<std::string, std::vector<slam::Trajectory>>>& methods,
+    DemoReport* report) {
+    DemoPlotInput plot{"certislam demo: " + std::to_string(options.robots) +
+                           " robots, top-down (x-y, team frame), joint SE(3) alignment",
+                       team.ground_truth,
+                       {}};
+    const char* colours[] = {"#7f7f7f", "#ff7f0e", "#9467bd", "#2ca02c"};
+    const char* names[] = {"odometry", "one-time alignment", "local search (LM)", "certified RBCD"};
+    for (size_t m = 0; m < methods.size(); ++m) {
+        slam::AlignedTeam scored = slam::AlignTeam(team.ground_truth, methods[m].second);
+        plot.methods.push_back({names[m], colours[m], std::move(scored.aligned), scored.ate_rmse,
+                                m == 2 ? 5.0 : 1.6});  // local search wide: may hide certified
+    }
+    const std::vector<double> pipeline_rmse =
+        slam::AlignTeam(team.ground_truth, mission.certified).ate_rmse;
+    for (size_t r = 0; r < team.robots.size(); ++r) {
+        report->robots.push_back({static_cast<int>(r), static_cast<int>(team.robots[r].size()),
+                                  plot.methods[0].rmse[r], plot.methods[1].rmse[r],
+                                  plot.methods[2].rmse[r], pipeline_rmse[r]});
+    }
+    return plot;
+}
+
 std::string PipelineText(bool actors) {
     if (!actors) {
         return "Table I from the slam/certify mission pipeline called directly in one thread "
@@ -353,7 +314,8 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     DemoReport report;
     ProgressBar bar(!options.quiet);
     SimulatedTeam team = Simulate(options, &bar);
-    report.tunnel_steps = DegradeOdometryInTunnel(team.streets, options.tunnel_slip, &team);
+    report.tunnel_steps =
+        slam::DegradeOdometryInTunnel(team.streets, options.tunnel_slip, team.truth, &team.robots);
     report.mission = std::to_string(options.robots) + " robots " +
                      (options.sequential ? "driving one after another" : "driving at once") +
                      " on overlapping routes through a simulated city; drifting LiDAR-inertial "
@@ -385,23 +347,7 @@ DemoReport RunDemoMission(const DemoOptions& options) {
             [&](const std::string& stage, double f) { bar.Update(stage, 0.5 + 0.35 * f); });
         methods[3].second = run->trajectory;
     }
-    DemoPlotInput plot{"certislam demo: " + std::to_string(options.robots) +
-                           " robots, top-down (x-y, team frame), joint SE(3) alignment",
-                       team.ground_truth,
-                       {}};
-    const char* colours[] = {"#7f7f7f", "#ff7f0e", "#9467bd", "#2ca02c"};
-    const char* names[] = {"odometry", "one-time alignment", "local search (LM)", "certified RBCD"};
-    for (size_t m = 0; m < methods.size(); ++m) {
-        Scored scored = Score(team, methods[m].second);
-        plot.methods.push_back({names[m], colours[m], std::move(scored.aligned), scored.rmse,
-                                m == 2 ? 5.0 : 1.6});  // local search wide: may hide certified
-    }
-    const std::vector<double> pipeline_rmse = Score(team, mission.certified).rmse;
-    for (size_t r = 0; r < team.robots.size(); ++r) {
-        report.robots.push_back({static_cast<int>(r), static_cast<int>(team.robots[r].size()),
-                                 plot.methods[0].rmse[r], plot.methods[1].rmse[r],
-                                 plot.methods[2].rmse[r], pipeline_rmse[r]});
-    }
+    const DemoPlotInput plot = ScoreMethods(options, team, mission, methods, &report);
     FillCertificate(mission, team, &report);
     FillLoopsAndBytes(mission, &report);
     if (run) FillFromActors(*run, plot.methods[3].rmse, &report);
@@ -411,7 +357,9 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     if (run) {
         mesh = std::move(run->mesh);  // robot 0's TSDF mapper actor: every robot's submaps
     } else if (options.voxel_m > 0) {
-        mesh = FuseMesh(team, methods[3].second, options.voxel_m, &bar);
+        mesh = slam::FuseKeyframes(team.robots, methods[3].second, options.voxel_m, [&](double f) {
+            bar.Update("fusing TSDF map", 0.8 + 0.15 * f);
+        });
     }
     report.timings["tsdf_mesh"] = Since(map_start);
     if (!options.out_dir.empty()) {

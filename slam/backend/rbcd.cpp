@@ -1,17 +1,17 @@
-// RBCD driver (one process, all robots) and the per-robot RbcdAgent. Tian et al., T-RO 2021:
-// Alg. 1 (RBCD), Alg. 3 (RBCD++: Nesterov acceleration with adaptive restart); blocks of robots
-// that share no edge are updated together (a colouring of the robot graph).
+// SolveRbcd: all robots' agents in one process. Each outer iteration updates every colour class
+// of the robot graph in turn (or only the class with the largest gradient when greedy), robots of
+// one class together; RBCD++ extrapolates (Nesterov) and restarts when the cost would rise.
 #include "slam/backend/rbcd.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <map>
-#include <stdexcept>
-#include <string>
+#include <memory>
+#include <vector>
 
 #include "slam/backend/connection_laplacian.h"
 #include "slam/backend/rbcd_block.h"
+#include "slam/backend/schwarz_preconditioner.h"
 #include "slam/backend/sparse_product.h"
 #include "slam/backend/stiefel.h"
 #include "slam/core/check.h"
@@ -19,215 +19,241 @@
 namespace certislam::slam {
 namespace {
 
-void Require(bool ok, const std::string& field, double value, const std::string& rule) {
-    if (!ok) {
-        throw std::invalid_argument("RbcdConfig." + field + " = " + std::to_string(value) + ": " +
-                                    rule);
+// Consecutive iterations without real decrease. Near the optimum of ill-conditioned graphs
+// (parking-garage) the predicted decrease falls below the cost's rounding noise and every trust-
+// region step is rejected: each further iteration then costs full CG runs for nothing.
+constexpr int kStallIterations = 3;
+constexpr double kStallRelDecrease = 1e-15;
+
+class Team {
+  public:
+    Team(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partition, int rank,
+         const RbcdConfig& config, std::vector<std::vector<int>> classes)
+        : d_(d), partition_(partition), classes_(std::move(classes)) {
+        for (int k = 0; k < partition.num_robots(); ++k) {
+            agents_.emplace_back(Q, d, partition, k, rank, config);
+        }
     }
+
+    int block_updates = 0;
+    int rtr_iterations = 0;
+
+    // Updates robot k's block of X in place.
+    void UpdateRobot(int k, double grad_tol, Eigen::MatrixXd* X) {
+        RbcdAgent& agent = agents_[k];
+        const int b = d_ + 1;
+        const auto& nbr = agent.NeighborPoseIds();
+        Eigen::MatrixXd blocks(X->rows(), b * static_cast<int>(nbr.size()));
+        for (size_t i = 0; i < nbr.size(); ++i) {
+            blocks.middleCols(b * i, b) = X->middleCols(b * nbr[i], b);
+        }
+        agent.SetNeighborPoses(blocks);
+        const int c0 = b * partition_.begin[k];
+        const int cols = b * partition_.size(k);
+        agent.SetBlock(X->middleCols(c0, cols));
+        const RbcdAgentStatus s = agent.Update(grad_tol);
+        rtr_iterations += s.rtr_iterations;
+        ++block_updates;
+        X->middleCols(c0, cols) = agent.Block();
+    }
+
+    // One RBCD iteration from X: the chosen colour classes, in turn.
+    Eigen::MatrixXd Iterate(Eigen::MatrixXd X, const Eigen::MatrixXd& rgrad, double grad_tol,
+                            bool greedy) {
+        if (!greedy) {
+            for (const auto& cls : classes_) {
+                for (int k : cls) UpdateRobot(k, grad_tol, &X);
+            }
+            return X;
+        }
+        // RBCD greedy rule applied to colour classes: the largest squared gradient norm.
+        const int b = d_ + 1;
+        size_t best = 0;
+        double best_norm = -1.0;
+        for (size_t c = 0; c < classes_.size(); ++c) {
+            double sq = 0.0;
+            for (int k : classes_[c]) {
+                sq +=
+                    rgrad.middleCols(b * partition_.begin[k], b * partition_.size(k)).squaredNorm();
+            }
+            if (sq > best_norm) {
+                best_norm = sq;
+                best = c;
+            }
+        }
+        for (int k : classes_[best]) UpdateRobot(k, grad_tol, &X);
+        return X;
+    }
+
+  private:
+    int d_;
+    Partition partition_;
+    std::vector<std::vector<int>> classes_;
+    std::vector<RbcdAgent> agents_;
+};
+
+struct Evaluation {
+    double cost = 0.0;
+    Eigen::MatrixXd rgrad;
+    double grad_norm = 0.0;
+};
+
+Evaluation Evaluate(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X, int d) {
+    Evaluation e;
+    const Eigen::MatrixXd XQ = DenseTimesSparse(X, Q);
+    e.cost = XQ.cwiseProduct(X).sum();
+    e.rgrad = ProjectToTangent(X, 2.0 * XQ, d);
+    e.grad_norm = e.rgrad.norm();
+    return e;
+}
+
+// The distributed finish (RbcdConfig::polish_after_iterations): trust-region steps on the whole
+// X. Per truncated-CG iteration each robot computes its own columns of V Q (its neighbours'
+// columns of V in, as for RBCD's linear term) and applies its own factor of the Schwarz
+// preconditioner (block Jacobi first, overlapping once CG needs many iterations); the inner
+// products are sums of one scalar per robot. Run here in one process on the assembled X.
+int Polish(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partition,
+           const RbcdConfig& config, double grad_tol, Eigen::MatrixXd* X) {
+    SchwarzPreconditioner schwarz(Q, d, partition, config.polish_overlap,
+                                  config.polish_escalate_after, config.precon_regulariser);
+    const Eigen::MatrixXd no_linear_term;
+    std::unique_ptr<TranslationElimination> elim;
+    if (config.eliminate_translations) {
+        elim = std::make_unique<TranslationElimination>(Q, d, /*anchor_gauge=*/true);
+        if (!elim->valid()) elim.reset();
+    }
+    BlockProblem problem{&Q, &no_linear_term, nullptr, d, nullptr, elim.get()};
+    problem.schwarz = &schwarz;
+    BlockRtrOptions options;
+    options.max_iterations = config.polish_max_rtr_iterations;
+    options.max_tcg_iterations = config.polish_max_tcg_iterations;
+    options.tcg_residual_floor = config.tcg_residual_floor;
+    options.grad_tol = grad_tol;
+    options.grad_reduction = 0.0;  // only the global tolerance stops it
+    return SolveBlockRtr(problem, options, X).iterations;
+}
+
+// What RBCD++ keeps between outer iterations: the iterate, the previous one, its cost and
+// gradient, and the Nesterov weight gamma.
+struct State {
+    Eigen::MatrixXd X, X_prev;
+    Evaluation eval;
+    double gamma = 1.0;
+};
+
+// One outer iteration (RBCD++, Alg. 3): extrapolate, then a block update from there; restart
+// from X itself when the cost would rise (plain RBCD without acceleration). Returns true when
+// the acceleration restarted.
+bool Step(const Eigen::SparseMatrix<double>& Q, int d, bool accelerate, bool greedy,
+          double local_tol, Team* team, State* s) {
+    Eigen::MatrixXd X_new;
+    Evaluation eval_new;
+    double gamma_new = 1.0;
+    if (accelerate) {
+        gamma_new = 0.5 * (1.0 + std::sqrt(1.0 + 4.0 * s->gamma * s->gamma));
+        const double beta = (s->gamma - 1.0) / gamma_new;
+        const Eigen::MatrixXd Y = ProjectToManifold(s->X + beta * (s->X - s->X_prev), d);
+        X_new = team->Iterate(Y, s->eval.rgrad, local_tol, greedy);
+        eval_new = Evaluate(Q, X_new, d);
+    }
+    bool restarted = false;
+    if (!accelerate || eval_new.cost > s->eval.cost) {  // adaptive restart from X itself
+        restarted = accelerate;
+        gamma_new = 1.0;
+        X_new = team->Iterate(s->X, s->eval.rgrad, local_tol, greedy);
+        eval_new = Evaluate(Q, X_new, d);
+    }
+    s->gamma = gamma_new;
+    s->X_prev = std::move(s->X);
+    s->X = std::move(X_new);
+    s->eval = std::move(eval_new);
+    return restarted;
+}
+
+// The second stop: f fell by at most rel_cost_decrease_tol * max(1, f) over cost_window
+// iterations.
+bool CostConverged(const RbcdConfig& config, const std::vector<double>& costs, int iterations) {
+    const double cost = costs.back();
+    return config.rel_cost_decrease_tol > 0.0 && iterations > config.cost_window &&
+           costs[costs.size() - 1 - config.cost_window] - cost <=
+               config.rel_cost_decrease_tol * std::max(1.0, std::abs(cost));
 }
 
 }  // namespace
 
-void RbcdConfig::Validate() const {
-    Require(rel_grad_tol > 0.0, "rel_grad_tol", rel_grad_tol, "must be > 0");
-    Require(local_tol_factor > 0.0 && local_tol_factor <= 1.0, "local_tol_factor", local_tol_factor,
-            "must be in (0, 1]");
-    Require(block_grad_reduction > 0.0 && block_grad_reduction < 1.0, "block_grad_reduction",
-            block_grad_reduction, "must be in (0, 1)");
-    Require(block_max_rtr_iterations >= 1, "block_max_rtr_iterations", block_max_rtr_iterations,
-            "must be >= 1");
-    Require(max_tcg_iterations >= 1, "max_tcg_iterations", max_tcg_iterations, "must be >= 1");
-    Require(max_iterations >= 1, "max_iterations", max_iterations, "must be >= 1");
-    Require(max_seconds > 0.0, "max_seconds", max_seconds, "must be > 0");
-    Require(rel_cost_decrease_tol >= 0.0, "rel_cost_decrease_tol", rel_cost_decrease_tol,
-            "must be >= 0");
-    Require(cost_window >= 1, "cost_window", cost_window, "must be >= 1");
-    Require(precon_regulariser > 0.0, "precon_regulariser", precon_regulariser, "must be > 0");
-    Require(polish_after_iterations >= 0, "polish_after_iterations", polish_after_iterations,
-            "must be >= 0");
-    Require(polish_overlap >= 0 && polish_overlap <= 8, "polish_overlap", polish_overlap,
-            "must be in [0, 8]");
-    Require(polish_escalate_after >= 1, "polish_escalate_after", polish_escalate_after,
-            "must be >= 1");
-    Require(polish_max_rtr_iterations >= 1, "polish_max_rtr_iterations", polish_max_rtr_iterations,
-            "must be >= 1");
-    Require(tcg_residual_floor >= 0.0 && tcg_residual_floor < 1.0, "tcg_residual_floor",
-            tcg_residual_floor, "must be in [0, 1)");
-    Require(polish_max_tcg_iterations >= 1, "polish_max_tcg_iterations", polish_max_tcg_iterations,
-            "must be >= 1");
-}
-
-double LiftedCost(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X) {
-    return DenseTimesSparse(X, Q).cwiseProduct(X).sum();
-}
-
-Eigen::MatrixXd RiemannianGradient(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
-                                   int d) {
-    const Eigen::MatrixXd egrad = 2.0 * DenseTimesSparse(X, Q);
-    return ProjectToTangent(X, egrad, d);
-}
-
-struct RbcdAgent::Impl {
-    int robot = 0;
-    int d = 3;
-    int rank = 3;
-    RbcdConfig config;
-    Eigen::SparseMatrix<double> Qaa;  // own block of Q
-    Eigen::SparseMatrix<double> Qna;  // rows: neighbour poses' columns (compacted); cols: own
-    BlockFactor factor;
-    std::unique_ptr<HessianPreconditioner> hessian;  // borrows Qaa (stable: Impl is on the heap)
-    std::unique_ptr<TranslationElimination> elim;    // its own copy of Qaa's T columns
-    std::vector<int> neighbor_ids;
-    std::vector<int> public_ids;
-    std::vector<int> public_local;  // local pose index of each public pose
-    Eigen::MatrixXd X;              // own block
-    Eigen::MatrixXd G;              // linear term X_nbr Q_na
-
-    BlockProblem Problem() const {
-        return BlockProblem{&Qaa, &G, &factor, d, hessian.get(), elim.get()};
-    }
-};
-
-RbcdAgent::RbcdAgent(const PoseGraph& graph, const Partition& partition, int robot, int rank,
-                     const RbcdConfig& config) {
-    PoseGraph local;
-    local.d = graph.d;
-    local.n = graph.n;
-    const int lo = partition.begin[robot];
-    const int hi = partition.begin[robot + 1];
-    for (const auto& e : graph.edges) {
-        if ((e.i >= lo && e.i < hi) || (e.j >= lo && e.j < hi)) local.edges.push_back(e);
-    }
-    *this = RbcdAgent(ConnectionLaplacian(local), graph.d, partition, robot, rank, config);
-}
-
-RbcdAgent::RbcdAgent(const Eigen::SparseMatrix<double>& Q, int d, const Partition& partition,
-                     int robot, int rank, const RbcdConfig& config)
-    : impl_(std::make_unique<Impl>()) {
+RbcdResult SolveRbcd(const PoseGraph& graph, const Partition& partition, const Eigen::MatrixXd& X0,
+                     const RbcdConfig& config,
+                     const std::function<void(const RbcdProgress&)>& progress) {
     config.Validate();
-    CERTISLAM_CHECK(robot >= 0 && robot < partition.num_robots() && rank >= d);
-    Impl& m = *impl_;
-    m.robot = robot;
-    m.d = d;
-    m.rank = rank;
-    m.config = config;
-    const int b = d + 1;
-    const int c0 = b * partition.begin[robot];
-    const int cols = b * partition.size(robot);
-    // Neighbour poses: rows of Q outside the own range in the own columns.
-    std::map<int, int> nbr;  // global pose -> compact index
-    std::vector<bool> is_public(partition.size(robot), false);
-    for (int c = 0; c < cols; ++c) {
-        for (Eigen::SparseMatrix<double>::InnerIterator it(Q, c0 + c); it; ++it) {
-            const int row = static_cast<int>(it.row());
-            if (row < c0 || row >= c0 + cols) {
-                nbr.emplace(row / b, 0);
-                is_public[c / b] = true;
-            }
+    const auto start = std::chrono::steady_clock::now();
+    auto elapsed = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+    const int d = graph.d;
+    CERTISLAM_CHECK(X0.cols() == (d + 1) * graph.n && X0.rows() >= d);
+    CERTISLAM_CHECK(partition.begin.back() == graph.n);
+    const Eigen::SparseMatrix<double> Q = ConnectionLaplacian(graph);
+    Team team(Q, d, partition, static_cast<int>(X0.rows()), config, ColourRobots(graph, partition));
+    const bool accelerate = config.acceleration && partition.num_robots() > 1;
+    const bool polish = partition.num_robots() > 1 && config.polish_after_iterations > 0;
+
+    RbcdResult result;
+    State s{X0, X0, Evaluate(Q, X0, d), 1.0};
+    int stalled = 0;
+    std::vector<double> costs{s.eval.cost};
+    result.status = RbcdResult::Status::kMaxIterations;
+    while (true) {
+        const double tol = config.rel_grad_tol * std::max(1.0, s.eval.cost);
+        if (s.eval.grad_norm <= tol) {
+            result.status = RbcdResult::Status::kConverged;
+            break;
+        }
+        if (result.iterations >= config.max_iterations) break;
+        if (polish && result.iterations >= config.polish_after_iterations) break;
+        if (elapsed() > config.max_seconds) {
+            result.status = RbcdResult::Status::kMaxTime;
+            break;
+        }
+        const double cost_before = s.eval.cost;
+        const double local_tol = config.local_tol_factor * tol;
+        if (Step(Q, d, accelerate, config.greedy, local_tol, &team, &s)) ++result.restarts;
+        const double decrease = cost_before - s.eval.cost;
+        stalled =
+            decrease <= kStallRelDecrease * std::max(1.0, std::abs(cost_before)) ? stalled + 1 : 0;
+        ++result.iterations;
+        if (progress)
+            progress(RbcdProgress{result.iterations, s.eval.cost, s.eval.grad_norm, elapsed()});
+        costs.push_back(s.eval.cost);
+        if (CostConverged(config, costs, result.iterations)) {
+            result.status = RbcdResult::Status::kCostConverged;
+            break;
+        }
+        // One robot: the trust region is deterministic, a flat iteration will repeat itself.
+        if (stalled >= (partition.num_robots() == 1 ? 1 : kStallIterations)) {
+            result.status = RbcdResult::Status::kStalled;
+            break;
         }
     }
-    for (auto& [pose, index] : nbr) {
-        index = static_cast<int>(m.neighbor_ids.size());
-        m.neighbor_ids.push_back(pose);
+    Eigen::MatrixXd X = std::move(s.X);
+    Evaluation eval = std::move(s.eval);
+    if (polish && result.status != RbcdResult::Status::kConverged &&
+        result.status != RbcdResult::Status::kMaxTime) {
+        const double tol = config.rel_grad_tol * std::max(1.0, eval.cost);
+        result.polish_rtr_iterations = Polish(Q, d, partition, config, tol, &X);
+        eval = Evaluate(Q, X, d);
+        result.status = eval.grad_norm <= config.rel_grad_tol * std::max(1.0, eval.cost)
+                            ? RbcdResult::Status::kConverged
+                            : RbcdResult::Status::kStalled;
+        if (progress)
+            progress(RbcdProgress{result.iterations, eval.cost, eval.grad_norm, elapsed()});
     }
-    for (int k = 0; k < partition.size(robot); ++k) {
-        if (is_public[k]) {
-            m.public_local.push_back(k);
-            m.public_ids.push_back(partition.begin[robot] + k);
-        }
-    }
-    std::vector<Eigen::Triplet<double>> own, cross;
-    double max_diag = 0.0;
-    for (int c = 0; c < cols; ++c) {
-        for (Eigen::SparseMatrix<double>::InnerIterator it(Q, c0 + c); it; ++it) {
-            const int row = static_cast<int>(it.row());
-            if (row >= c0 && row < c0 + cols) {
-                own.emplace_back(row - c0, c, it.value());
-                if (row - c0 == c) max_diag = std::max(max_diag, it.value());
-            } else {
-                cross.emplace_back(nbr[row / b] * b + row % b, c, it.value());
-            }
-        }
-    }
-    m.Qaa.resize(cols, cols);
-    m.Qaa.setFromTriplets(own.begin(), own.end());
-    m.Qna.resize(b * static_cast<int>(m.neighbor_ids.size()), cols);
-    m.Qna.setFromTriplets(cross.begin(), cross.end());
-    Eigen::SparseMatrix<double> M = m.Qaa;
-    for (int c = 0; c < cols; ++c)
-        M.coeffRef(c, c) += config.precon_regulariser * (max_diag > 0.0 ? max_diag : 1.0);
-    m.factor.setMode(Eigen::CholmodSimplicialLLt);
-    m.factor.compute(M);
-    CERTISLAM_CHECK(m.factor.info() == Eigen::Success);
-    if (config.hessian_preconditioner)
-        m.hessian = std::make_unique<HessianPreconditioner>(m.Qaa, d);
-    if (config.eliminate_translations) {
-        m.elim = std::make_unique<TranslationElimination>(m.Qaa, d, m.Qna.nonZeros() == 0);
-        if (!m.elim->valid()) m.elim.reset();  // Q_TT singular beyond the gauge: explicit
-    }
-    m.X = Eigen::MatrixXd::Zero(rank, cols);
-    m.G = Eigen::MatrixXd::Zero(rank, cols);
-}
-
-RbcdAgent::~RbcdAgent() = default;
-RbcdAgent::RbcdAgent(RbcdAgent&&) noexcept = default;
-RbcdAgent& RbcdAgent::operator=(RbcdAgent&&) noexcept = default;
-
-int RbcdAgent::robot() const { return impl_->robot; }
-const std::vector<int>& RbcdAgent::NeighborPoseIds() const { return impl_->neighbor_ids; }
-const std::vector<int>& RbcdAgent::PublicPoseIds() const { return impl_->public_ids; }
-const Eigen::MatrixXd& RbcdAgent::Block() const { return impl_->X; }
-
-void RbcdAgent::SetBlock(const Eigen::MatrixXd& X_a) {
-    CERTISLAM_CHECK(X_a.rows() == impl_->X.rows() && X_a.cols() == impl_->X.cols());
-    impl_->X = X_a;
-}
-
-void RbcdAgent::SetNeighborPoses(const Eigen::MatrixXd& blocks) {
-    Impl& m = *impl_;
-    CERTISLAM_CHECK(blocks.rows() == m.rank && blocks.cols() == m.Qna.rows());
-    if (m.Qna.rows() == 0) {
-        m.G.setZero();
-        return;
-    }
-    m.G = blocks * m.Qna;
-}
-
-Eigen::MatrixXd RbcdAgent::PublicPoses() const {
-    const Impl& m = *impl_;
-    const int b = m.d + 1;
-    Eigen::MatrixXd out(m.rank, b * static_cast<int>(m.public_local.size()));
-    for (size_t k = 0; k < m.public_local.size(); ++k) {
-        out.middleCols(b * k, b) = m.X.middleCols(b * m.public_local[k], b);
-    }
-    return out;
-}
-
-double RbcdAgent::BlockGradNorm() const { return slam::BlockGradNorm(impl_->Problem(), impl_->X); }
-
-RbcdAgentStatus RbcdAgent::Update(double grad_tol) {
-    Impl& m = *impl_;
-    BlockRtrOptions options;
-    options.max_iterations = m.config.block_max_rtr_iterations;
-    options.max_tcg_iterations = m.config.max_tcg_iterations;
-    options.tcg_residual_floor = m.config.tcg_residual_floor;
-    options.grad_tol = grad_tol;
-    options.grad_reduction = m.config.block_grad_reduction;
-    const BlockRtrOutcome o = SolveBlockRtr(m.Problem(), options, &m.X);
-    RbcdAgentStatus s;
-    s.cost_before = o.cost_before;
-    s.cost_after = o.cost_after;
-    s.grad_norm_before = o.grad_norm_before;
-    s.grad_norm_after = o.grad_norm_after;
-    s.rtr_iterations = o.iterations;
-    if (o.iterations == 0) {
-        s.status = RbcdAgentStatus::Status::kConverged;
-    } else if (o.accepted == 0) {
-        s.status = RbcdAgentStatus::Status::kNoProgress;
-    } else {
-        s.status = RbcdAgentStatus::Status::kImproved;
-    }
-    return s;
+    result.X = std::move(X);
+    result.cost = eval.cost;
+    result.grad_norm = eval.grad_norm;
+    result.block_updates = team.block_updates;
+    result.rtr_iterations = team.rtr_iterations;
+    result.seconds = elapsed();
+    return result;
 }
 
 }  // namespace certislam::slam

@@ -79,4 +79,12 @@ std::vector<std::vector<int>> ColourRobots(const PoseGraph& graph, const Partiti
     return classes;
 }
 
+int CountPublicPoses(const PoseGraph& graph) {
+    std::vector<bool> is_public(static_cast<size_t>(graph.n), false);
+    for (const auto& e : graph.edges) {
+        if (graph.ids[e.i].robot != graph.ids[e.j].robot) is_public[e.i] = is_public[e.j] = true;
+    }
+    return static_cast<int>(std::count(is_public.begin(), is_public.end(), true));
+}
+
 }  // namespace certislam::slam

@@ -31,4 +31,8 @@ Partition PartitionFromIds(const PoseGraph& graph);
 /// colour share no edge and can be updated in parallel. Returns colour classes, each a robot list.
 std::vector<std::vector<int>> ColourRobots(const PoseGraph& graph, const Partition& partition);
 
+/// Number of public poses: those an inter-robot edge touches (the poses a robot shares with its
+/// neighbours in every RBCD iteration).
+int CountPublicPoses(const PoseGraph& graph);
+
 }  // namespace certislam::slam

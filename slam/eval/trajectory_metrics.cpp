@@ -141,4 +141,17 @@ TeamErrors EvaluateTeam(const std::vector<AssociatedPoses>& robots, bool align) 
     return team;
 }
 
+AlignedTeam AlignTeam(const std::vector<Trajectory>& gt, const std::vector<Trajectory>& est) {
+    std::vector<AssociatedPoses> pairs;
+    for (size_t r = 0; r < est.size(); ++r) pairs.push_back(Associate(gt[r], est[r], {}));
+    const TeamErrors errors = EvaluateTeam(pairs, true);
+    AlignedTeam out;
+    for (const auto& e : errors.robots) out.ate_rmse.push_back(e.ate_rmse);
+    out.aligned = est;
+    for (auto& traj : out.aligned) {
+        for (auto& p : traj) p.T_world_body = errors.T_gt_est * p.T_world_body;
+    }
+    return out;
+}
+
 }  // namespace certislam::slam

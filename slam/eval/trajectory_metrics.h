@@ -67,4 +67,15 @@ struct TeamErrors {
 /// all robots), and each robot also on its own; without it T_gt_est is the identity.
 TeamErrors EvaluateTeam(const std::vector<AssociatedPoses>& robots, bool align);
 
+/// A team's estimates scored under one joint SE(3) alignment.
+struct AlignedTeam {
+    std::vector<double> ate_rmse;     ///< [robot] ATE RMSE under the joint alignment, m
+    std::vector<Trajectory> aligned;  ///< [robot] the estimate mapped by T_gt_est (gt frame)
+};
+
+/// Associates est[r] with gt[r] by stamp (default AssociationConfig), aligns the whole team
+/// with one T_gt_est (EvaluateTeam with align) and returns each robot's ATE RMSE and the
+/// estimates moved into the ground-truth frame. `gt` has at least est.size() trajectories.
+AlignedTeam AlignTeam(const std::vector<Trajectory>& gt, const std::vector<Trajectory>& est);
+
 }  // namespace certislam::slam

@@ -1,10 +1,10 @@
 // Exact maximum clique by branch and bound with a greedy-colouring bound (Tomita & Seki 2003,
 // MCQ), as PCM needs it; dense bit rows keep the candidate intersections cheap.
+#include "slam/frontend/max_clique.h"
+
 #include <algorithm>
 #include <cstdint>
 #include <vector>
-
-#include "slam/frontend/pcm.h"
 
 namespace certislam::slam {
 namespace {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "slam/core/pose_graph.h"
+#include "slam/frontend/max_clique.h"
 #include "slam/frontend/registration.h"
 
 namespace certislam::slam {
@@ -68,12 +69,6 @@ double PairwiseMahalanobis2(const PcmMeasurement& i, const PcmMeasurement& j,
 /// Cumulative travelled distance along each robot's odometry poses.
 std::vector<std::vector<double>> TravelledDistances(
     const std::vector<std::vector<Eigen::Isometry3d>>& odometry);
-
-/// Exact maximum clique of an undirected graph given as adjacency lists (branch and bound with
-/// a greedy-colouring bound, Tomita & Seki's MCQ). `*nodes` counts branch nodes; the search
-/// stops after `max_nodes` and returns the best clique so far (then *exact = false).
-std::vector<int> MaximumClique(const std::vector<std::vector<int>>& adjacency,
-                               std::int64_t max_nodes, std::int64_t* nodes, bool* exact);
 
 /// Runs PCM per robot pair: consistency graph, exact maximum clique, inliers out. Loops are
 /// oriented so that a.robot <= b.robot before grouping (the inverse measurement is used).

@@ -1,15 +1,24 @@
-// RegisterScans with PCL's GICP (the project's only PCL registration translation unit: PCL's
-// registration templates are slow to compile, so no PCL header leaves this file).
+// Scan-to-scan registration: the settings check, the yaw guess and RegisterScans with PCL's GICP
+// (the project's only PCL registration translation unit: no PCL header leaves this file).
 #include "slam/frontend/registration.h"
 
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/registration/gicp.h>
 
+#include <stdexcept>
+#include <string>
+
 #include "slam/frontend/downsample.h"
+#include "slam/frontend/registration_quality.h"
 
 namespace certislam::slam {
 namespace {
+
+[[noreturn]] void Invalid(const std::string& field, double value, const std::string& rule) {
+    throw std::invalid_argument("RegistrationConfig." + field + " = " + std::to_string(value) +
+                                ": must be " + rule);
+}
 
 using PclCloud = pcl::PointCloud<pcl::PointXYZ>;
 
@@ -55,6 +64,35 @@ Eigen::Isometry3d ToIsometry(const Eigen::Matrix4f& m) {
 }
 
 }  // namespace
+
+void RegistrationConfig::Validate() const {
+    if (!(voxel_m > 0)) Invalid("voxel_m", voxel_m, "> 0");
+    if (!(max_correspondence_m > 0)) Invalid("max_correspondence_m", max_correspondence_m, "> 0");
+    if (!(coarse_voxel_m >= 0)) Invalid("coarse_voxel_m", coarse_voxel_m, ">= 0");
+    if (!(coarse_max_correspondence_m > 0)) {
+        Invalid("coarse_max_correspondence_m", coarse_max_correspondence_m, "> 0");
+    }
+    if (max_iterations < 1) Invalid("max_iterations", max_iterations, ">= 1");
+    if (covariance_neighbours < 5) Invalid("covariance_neighbours", covariance_neighbours, ">= 5");
+    if (min_points < 6) Invalid("min_points", min_points, ">= 6");
+    if (!(inlier_distance_m > 0)) Invalid("inlier_distance_m", inlier_distance_m, "> 0");
+    if (!(min_fitness >= 0 && min_fitness <= 1)) Invalid("min_fitness", min_fitness, "in [0, 1]");
+    if (!(min_translation_eigen_ratio >= 0 && min_translation_eigen_ratio < 1)) {
+        Invalid("min_translation_eigen_ratio", min_translation_eigen_ratio, "in [0, 1)");
+    }
+    if (!(min_translation_sigma_m > 0)) {
+        Invalid("min_translation_sigma_m", min_translation_sigma_m, "> 0");
+    }
+    if (!(min_rotation_sigma_rad > 0)) {
+        Invalid("min_rotation_sigma_rad", min_rotation_sigma_rad, "> 0");
+    }
+}
+
+Eigen::Isometry3d YawGuess(double yaw_rad) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    return T;
+}
 
 RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& target,
                                  const Eigen::Isometry3d& T_target_source_guess,

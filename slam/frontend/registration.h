@@ -71,13 +71,4 @@ RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& tar
                                  const Eigen::Isometry3d& T_target_source_guess,
                                  const RegistrationConfig& config);
 
-/// Fitness, Hessian, degeneracy and information of an alignment already found (used by
-/// RegisterScans; exposed for tests and other registration back ends). `source` and `target`
-/// are the downsampled clouds; `result.T_target_source` must be set; fills the other fields
-/// except status/converged, and returns the status the quality tests give (kAccepted if all
-/// pass).
-RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const PointCloud& target,
-                                             const RegistrationConfig& config,
-                                             RegistrationResult& result);
-
 }  // namespace certislam::slam

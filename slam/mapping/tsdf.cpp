@@ -1,4 +1,5 @@
-// TsdfVolume: settings, integration (bounded rays through the truncation band) and queries.
+// TsdfVolume: settings, integration (bounded rays through the truncation band) and queries;
+// meshing, fusion and bytes are in tsdf_mesh, tsdf_fuse and tsdf_serialize.
 #include "slam/mapping/tsdf.h"
 
 #include <algorithm>
@@ -9,7 +10,10 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "slam/mapping/tsdf_fuse.h"
 #include "slam/mapping/tsdf_impl.h"
+#include "slam/mapping/tsdf_mesh.h"
+#include "slam/mapping/tsdf_serialize.h"
 
 namespace certislam::slam {
 namespace {
@@ -281,5 +285,23 @@ TsdfStats TsdfVolume::Stats() const {
 const TsdfConfig& TsdfVolume::config() const { return impl_->config; }
 
 std::size_t TsdfVolume::last_remeshed_blocks() const { return impl_->last_remeshed; }
+
+void TsdfVolume::FuseVoxels(const TsdfVolume& other, const Eigen::Isometry3d& T_this_other) {
+    FuseTsdfVoxels(*impl_, *other.impl_, T_this_other);
+}
+
+TriangleMesh TsdfVolume::ExtractMesh() { return ExtractTsdfMesh(*impl_); }
+
+bool TsdfVolume::SameVoxels(const TsdfVolume& other) const {
+    return SameTsdfVoxels(*impl_, *other.impl_);
+}
+
+std::string TsdfVolume::Serialize() const { return SerializeTsdf(*impl_); }
+
+std::optional<TsdfVolume> TsdfVolume::Deserialize(std::string_view bytes, std::string* error) {
+    auto impl = DeserializeTsdf(bytes, error);
+    if (!impl) return std::nullopt;
+    return TsdfVolume(std::move(impl));
+}
 
 }  // namespace certislam::slam

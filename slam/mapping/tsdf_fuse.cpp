@@ -1,4 +1,6 @@
-// TsdfVolume::FuseVoxels: resampling another volume's voxels into this one (submap fusion).
+// Resampling another TSDF's voxels into this one (submap fusion).
+#include "slam/mapping/tsdf_fuse.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -6,9 +8,8 @@
 
 namespace certislam::slam {
 
-void TsdfVolume::FuseVoxels(const TsdfVolume& other, const Eigen::Isometry3d& T_this_other) {
-    Impl& im = *impl_;
-    const Impl& src = *other.impl_;
+void FuseTsdfVoxels(TsdfVolume::Impl& im, const TsdfVolume::Impl& src,
+                    const Eigen::Isometry3d& T_this_other) {
     const double inv_voxel = 1.0 / im.config.voxel_size_m;
     const double src_voxel = src.config.voxel_size_m;
     const float max_sdf = static_cast<float>(im.config.truncation_m());

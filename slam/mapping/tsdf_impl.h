@@ -9,16 +9,9 @@
 #include <vector>
 
 #include "slam/mapping/tsdf.h"
+#include "slam/mapping/tsdf_mesh.h"
 
 namespace certislam::slam {
-
-/// The mesh of one 8^3 leaf block: its cubes' triangles, and for each vertex the key of the
-/// grid edge it lies on (so blocks can be welded into one indexed mesh).
-struct TsdfBlockMesh {
-    std::vector<std::uint64_t> edge_keys;    ///< one per vertex (see EdgeKey in tsdf_mesh.cpp)
-    std::vector<Eigen::Vector3f> vertices;   ///< volume frame, metres
-    std::vector<Eigen::Vector3i> triangles;  ///< indices into `vertices`
-};
 
 struct TsdfVolume::Impl {
     TsdfConfig config;
@@ -33,8 +26,5 @@ struct TsdfVolume::Impl {
     /// Marks every allocated leaf dirty (after deserialisation the cache is empty).
     void MarkAllDirty();
 };
-
-/// Marching cubes over one leaf block of `impl` at `origin` (tsdf_mesh.cpp).
-TsdfBlockMesh MeshBlock(const TsdfVolume::Impl& impl, const openvdb::Coord& origin);
 
 }  // namespace certislam::slam

@@ -1,4 +1,4 @@
-// TsdfVolume::ExtractMesh: marching cubes per 8^3 leaf block, cached and welded.
+// Marching cubes per 8^3 leaf block of a TSDF, cached and welded.
 //
 // Our own marching cubes rather than openvdb::tools::volumeToMesh: volumeToMesh assumes a
 // closed level set whose inactive space carries the inside/outside sign, but a TSDF built
@@ -6,6 +6,8 @@
 // edge it meets the +truncation background and produces false surfaces. Here a cube is
 // polygonised only when its 8 corners were all observed (weight > min_mesh_weight), as in
 // VDBFusion, and the work is per leaf block, which makes re-meshing incremental.
+#include "slam/mapping/tsdf_mesh.h"
+
 #include <algorithm>
 #include <array>
 
@@ -94,8 +96,7 @@ TsdfBlockMesh MeshBlock(const TsdfVolume::Impl& impl, const openvdb::Coord& orig
     return out;
 }
 
-TriangleMesh TsdfVolume::ExtractMesh() {
-    Impl& im = *impl_;
+TriangleMesh ExtractTsdfMesh(TsdfVolume::Impl& im) {
     // A voxel's change alters the cubes whose minimum corner is it or its -x/-y/-z neighbours,
     // so a touched block also dirties the 7 blocks on its negative sides.
     std::unordered_set<openvdb::Coord> todo;

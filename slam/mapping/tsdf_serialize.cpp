@@ -1,5 +1,8 @@
-// TsdfVolume: lossless compressed bytes (OpenVDB stream, blosc) and voxel-exact comparison.
+// A TSDF's lossless compressed bytes (OpenVDB stream, blosc) and voxel-exact comparison.
+#include "slam/mapping/tsdf_serialize.h"
+
 #include <openvdb/io/Stream.h>
+
 #include <bit>
 #include <cstring>
 #include <sstream>
@@ -51,22 +54,20 @@ bool Contains(const TsdfVolume::Impl& a, const TsdfVolume::Impl& b) {
 
 }  // namespace
 
-bool TsdfVolume::SameVoxels(const TsdfVolume& other) const {
-    const Impl& a = *impl_;
-    const Impl& b = *other.impl_;
+bool SameTsdfVoxels(const TsdfVolume::Impl& a, const TsdfVolume::Impl& b) {
     return SameConfig(a.config, b.config) &&
            a.weight->activeVoxelCount() == b.weight->activeVoxelCount() && Contains(a, b);
 }
 
-std::string TsdfVolume::Serialize() const {
+std::string SerializeTsdf(const TsdfVolume::Impl& impl) {
     std::ostringstream grids(std::ios::binary);
     openvdb::io::Stream stream(grids);
     stream.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
-    openvdb::GridCPtrVec vec{impl_->sdf, impl_->weight};
+    openvdb::GridCPtrVec vec{impl.sdf, impl.weight};
     stream.write(vec);
     const std::string grid_bytes = grids.str();
 
-    const TsdfConfig& c = impl_->config;
+    const TsdfConfig& c = impl.config;
     Header h{};
     std::memcpy(h.magic, kMagic, sizeof kMagic);
     h.voxel_size_m = c.voxel_size_m;
@@ -85,10 +86,10 @@ std::string TsdfVolume::Serialize() const {
     return out + grid_bytes;
 }
 
-std::optional<TsdfVolume> TsdfVolume::Deserialize(std::string_view bytes, std::string* error) {
+std::unique_ptr<TsdfVolume::Impl> DeserializeTsdf(std::string_view bytes, std::string* error) {
     auto fail = [&](const std::string& what) {
         if (error != nullptr) *error = "TSDF bytes: " + what;
-        return std::nullopt;
+        return std::unique_ptr<TsdfVolume::Impl>();
     };
     Header h;
     if (bytes.size() < sizeof h) return fail("truncated header");
@@ -108,7 +109,7 @@ std::optional<TsdfVolume> TsdfVolume::Deserialize(std::string_view bytes, std::s
     c.weight_dropoff = h.weight_dropoff != 0;
     try {
         c.Validate();
-        auto impl = std::make_unique<Impl>(c);
+        auto impl = std::make_unique<TsdfVolume::Impl>(c);
         std::istringstream in(std::string(bytes.substr(sizeof h)), std::ios::binary);
         openvdb::io::Stream stream(in, /*delayLoad=*/false);
         const openvdb::GridPtrVecPtr grids = stream.getGrids();
@@ -124,7 +125,7 @@ std::optional<TsdfVolume> TsdfVolume::Deserialize(std::string_view bytes, std::s
         impl->sdf = sdf;
         impl->weight = weight;
         impl->MarkAllDirty();
-        return TsdfVolume(std::move(impl));
+        return impl;
     } catch (const std::exception& e) {
         return fail(e.what());
     }

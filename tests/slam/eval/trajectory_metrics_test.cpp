@@ -127,5 +127,32 @@ TEST(TrajectoryMetrics, NoPairsIsAStatusNotACrash) {
     EXPECT_THROW(bad.Validate(), std::invalid_argument);
 }
 
+TEST(TrajectoryMetrics, AlignTeamMovesARigidlyMovedTeamOntoItsGroundTruth) {
+    const std::vector<Trajectory> gt = {Helix(30), Helix(30, 10.0)};
+    const Eigen::Isometry3d T = KnownTransform();
+    const AlignedTeam team = AlignTeam(gt, {Transformed(gt[0], T), Transformed(gt[1], T)});
+    ASSERT_EQ(team.ate_rmse.size(), 2u);
+    ASSERT_EQ(team.aligned.size(), 2u);
+    for (size_t r = 0; r < 2; ++r) {
+        EXPECT_NEAR(team.ate_rmse[r], 0.0, 1e-8);
+        ASSERT_EQ(team.aligned[r].size(), gt[r].size());
+        for (size_t k = 0; k < gt[r].size(); ++k) {
+            EXPECT_TRUE(team.aligned[r][k].T_world_body.isApprox(gt[r][k].T_world_body, 1e-8));
+            EXPECT_EQ(team.aligned[r][k].stamp_s, gt[r][k].stamp_s);
+        }
+    }
+}
+
+TEST(TrajectoryMetrics, AlignTeamScoresEachRobotUnderTheJointAlignment) {
+    // Robot 1 is 2 m above its truth: one transform for both leaves 1 m on each robot.
+    const std::vector<Trajectory> gt = {Helix(30), Helix(30, 10.0)};
+    Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
+    shift.translation() = Eigen::Vector3d(0, 0, 2);
+    const AlignedTeam team = AlignTeam(gt, {gt[0], Transformed(gt[1], shift)});
+    ASSERT_EQ(team.ate_rmse.size(), 2u);
+    EXPECT_NEAR(team.ate_rmse[0], 1.0, 1e-6);
+    EXPECT_NEAR(team.ate_rmse[1], 1.0, 1e-6);
+}
+
 }  // namespace
 }  // namespace certislam::slam

@@ -1,0 +1,30 @@
+// Marching cubes over a TSDF's 8^3 leaf blocks, cached per block and welded into one mesh
+// (private to tsdf*.cpp: TsdfVolume::ExtractMesh calls it).
+#pragma once
+
+#include <openvdb/openvdb.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "slam/mapping/mesh.h"
+#include "slam/mapping/tsdf.h"
+
+namespace certislam::slam {
+
+/// The mesh of one 8^3 leaf block: its cubes' triangles, and for each vertex the key of the
+/// grid edge it lies on (so blocks can be welded into one indexed mesh).
+struct TsdfBlockMesh {
+    std::vector<std::uint64_t> edge_keys;    ///< one per vertex (see EdgeKey in tsdf_mesh.cpp)
+    std::vector<Eigen::Vector3f> vertices;   ///< volume frame, metres
+    std::vector<Eigen::Vector3i> triangles;  ///< indices into `vertices`
+};
+
+/// Marching cubes over one leaf block of `impl` at `origin`.
+TsdfBlockMesh MeshBlock(const TsdfVolume::Impl& impl, const openvdb::Coord& origin);
+
+/// Re-meshes the blocks of `impl` touched since the last call (and their neighbours), updates
+/// its mesh cache and returns the welded mesh of every cached block (TsdfVolume::ExtractMesh).
+TriangleMesh ExtractTsdfMesh(TsdfVolume::Impl& impl);
+
+}  // namespace certislam::slam

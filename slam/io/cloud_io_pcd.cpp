@@ -5,7 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "slam/io/cloud_io_internal.h"
+#include "slam/io/cloud_io_parse.h"
+#include "slam/io/cloud_io_pcd.h"
 
 namespace certislam::slam {
 namespace cloud_io_internal {

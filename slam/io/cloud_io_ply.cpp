@@ -4,7 +4,8 @@
 #include <string>
 #include <vector>
 
-#include "slam/io/cloud_io_internal.h"
+#include "slam/io/cloud_io_parse.h"
+#include "slam/io/cloud_io_ply.h"
 
 namespace certislam::slam {
 namespace {

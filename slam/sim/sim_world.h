@@ -106,15 +106,4 @@ class SimWorld {
     std::vector<Ref> cell_refs_;
 };
 
-/// A generated world together with the street layout routes are planned on.
-struct GeneratedWorld {
-    SimWorld world;      ///< the geometry
-    SimStreets streets;  ///< where the streets and the tunnel are
-};
-
-/// Generates the city: a grid of streets with box buildings in the blocks, trees along the
-/// sidewalks, and east of the grid a loop whose southern street runs through a tunnel (two
-/// parallel walls and a roof, featureless along its axis). The same seed gives the same world.
-GeneratedWorld GenerateWorld(const SimWorldConfig& config, std::uint64_t seed);
-
 }  // namespace certislam::slam

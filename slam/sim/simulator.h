@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "slam/core/keyframe.h"
+#include "slam/sim/sim_city.h"
+#include "slam/sim/sim_routes.h"
 #include "slam/sim/sim_world.h"
 
 namespace certislam::slam {
@@ -114,12 +116,6 @@ class MissionGenerator {
     std::vector<std::vector<Eigen::Isometry3d>> odom_;   // [robot][keyframe]
     std::vector<std::vector<std::int64_t>> stamps_ns_;   // [robot][keyframe]
 };
-
-/// The default route (street-centreline waypoints) of `robot` in a world laid out as `streets`:
-/// robot 0 loops the grid and revisits its start, robot 1 crosses robot 0's streets, drives the
-/// tunnel loop and comes back; further robots take seeded random walks on the grid.
-std::vector<Eigen::Vector2d> DefaultRoute(const SimStreets& streets, int robot, std::uint64_t seed,
-                                          double length_m);
 
 /// Generates every keyframe of every robot (a few seconds for a few hundred keyframes).
 SimulatedMission SimulateMission(const SimulatorConfig& config);

@@ -5,7 +5,7 @@
 #include <cstdlib>
 #include <vector>
 
-#include "slam/io/cloud_io_internal.h"
+#include "slam/io/cloud_io_pcd.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     using namespace certislam::slam;

@@ -1,5 +1,6 @@
 // Ray casting against analytic primitives, and the grid traversal against brute force.
 #include "slam/sim/sim_world.h"
+#include "slam/sim/sim_city.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,6 @@
-// Helpers shared by the point-cloud readers in cloud_io*.cpp (not part of the public API).
+// Parsing helpers shared by the PCD and PLY readers (cloud_io_pcd.cpp, cloud_io_ply.cpp): scalar
+// decoding, header words, numbers, lines. Internal to the cloud readers, not part of the public
+// API.
 #pragma once
 
 #include <bit>
@@ -9,7 +11,7 @@
 #include <string_view>
 #include <vector>
 
-#include "slam/io/cloud_io.h"
+#include "slam/io/cloud_read_result.h"
 
 namespace certislam::slam::cloud_io_internal {
 
@@ -111,8 +113,5 @@ struct LineView {
 
 /// The line of `bytes` starting at `offset` (offset < bytes.size()).
 LineView NextLine(const std::vector<unsigned char>& bytes, std::size_t offset);
-
-/// Reads a PCD file from its bytes (cloud_io_pcd.cpp).
-CloudReadResult ParsePcd(const std::string& path, const std::vector<unsigned char>& bytes);
 
 }  // namespace certislam::slam::cloud_io_internal

@@ -1,8 +1,8 @@
-// Default robot routes on the simulator's street grid (DefaultRoute of slam/simulator.h).
+// Default robot routes on the simulator's street grid.
+#include "slam/sim/sim_routes.h"
+
 #include <algorithm>
 #include <random>
-
-#include "slam/sim/simulator.h"
 
 namespace certislam::slam {
 namespace {

@@ -1,8 +1,8 @@
-// Procedural generation of the simulator's city (GenerateWorld of slam/sim_world.h).
+// Procedural generation of the simulator's city.
+#include "slam/sim/sim_city.h"
+
 #include <cmath>
 #include <random>
-
-#include "slam/sim/sim_world.h"
 
 namespace certislam::slam {
 namespace {

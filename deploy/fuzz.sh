@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Fuzzes the envelope decoder with libFuzzer (clang, ASan + UBSan) for a bounded time.
-# Usage: deploy/fuzz.sh [SECONDS]   (default 60; FUZZ_BUILD_DIR overrides build-fuzz/)
+# Fuzzes the envelope decoder, the g2o reader and the PCD reader with libFuzzer (clang, ASan +
+# UBSan), each for a bounded time.
+# Usage: deploy/fuzz.sh [SECONDS]   (default 60 per target; FUZZ_BUILD_DIR overrides build-fuzz/)
 # Builds only the fuzzer in its own clang build folder, writes a seed corpus of real encoded
 # envelopes, fuzzes for SECONDS and exits non-zero when the fuzzer finds a crash, a leak or
 # undefined behaviour (the input is kept in FUZZ_BUILD_DIR/artifacts/).
@@ -25,7 +26,7 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
     exit 1
   }
 fi
-cmake --build "$build" -j "${JOBS:-2}" --target fuzz_envelope fuzz_envelope_seeds
+cmake --build "$build" -j "${JOBS:-2}" --target fuzz_envelope fuzz_envelope_seeds fuzz_g2o fuzz_pcd
 
 seeds="$build/seeds"
 corpus="$build/corpus"
@@ -39,3 +40,20 @@ echo "fuzz: envelope decoder for ${seconds} s (corpus $corpus, crashes in $artif
 "$build/tests/fuzz/fuzz_envelope" "$corpus" "$seeds" \
   -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=8192 \
   -artifact_prefix="$artifacts/" -print_final_stats=1
+
+# The readers: seeds are a small real g2o file and small PCD files of each DATA kind.
+data="${CERTISLAM_DATA_DIR:-$root/../shared/data}"
+for reader in g2o pcd; do
+  mkdir -p "$build/corpus-$reader" "$build/seeds-$reader"
+done
+cp "$data/g2o/tinyGrid3D.g2o" "$build/seeds-g2o/" 2>/dev/null || true
+printf 'FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n' \
+  >"$build/seeds-pcd/ascii.pcd"
+printf 'FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA binary\n0123456789ab' \
+  >"$build/seeds-pcd/binary.pcd"
+for reader in g2o pcd; do
+  echo "fuzz: $reader reader for ${seconds} s"
+  "$build/tests/fuzz/fuzz_$reader" "$build/corpus-$reader" "$build/seeds-$reader" \
+    -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=8192 \
+    -artifact_prefix="$artifacts/$reader-" -print_final_stats=1
+done

@@ -2,6 +2,7 @@
 // zero-copy send, and the hello/ready handshake.
 #include "transport/endpoint.h"
 
+#include <algorithm>
 #include <iterator>
 #include <zmq_addon.hpp>
 
@@ -41,6 +42,12 @@ Endpoint::Endpoint(zmq::context_t& context, EndpointConfig config)
     : config_(std::move(config)), socket_(context, SocketType(config_.role)) {
     config_.Validate();
     Configure();
+    const auto is_tcp = [](const std::string& a) { return a.rfind("tcp://", 0) == 0; };
+    const ConnectionCaps& caps = config_.connection_caps;
+    if (std::any_of(config_.bind.begin(), config_.bind.end(), is_tcp) &&
+        (caps.max_total > 0 || caps.max_per_peer > 0)) {
+        guard_ = std::make_unique<ConnectionGuard>(context, socket_, caps);
+    }
     for (const auto& address : config_.bind) {
         socket_.bind(address);
         bound_.push_back(socket_.get(zmq::sockopt::last_endpoint));
@@ -62,6 +69,7 @@ void Endpoint::Configure() {
     socket_.set(zmq::sockopt::sndhwm, ClampInt(config_.max_queue_messages));
     socket_.set(zmq::sockopt::rcvhwm, ClampInt(config_.max_queue_messages));
     socket_.set(zmq::sockopt::reconnect_ivl, config_.reconnect_interval_ms);
+    socket_.set(zmq::sockopt::handshake_ivl, config_.handshake_timeout_ms);
     if (config_.socket_buffer_bytes > 0) {
         socket_.set(zmq::sockopt::sndbuf, config_.socket_buffer_bytes);
         socket_.set(zmq::sockopt::rcvbuf, config_.socket_buffer_bytes);

@@ -100,6 +100,8 @@ class Endpoint {
     const EndpointConfig& config() const { return config_; }
     /// Snapshot of the counters.
     EndpointCounters counters() const;
+    /// Connections refused by the connection caps (0 when the socket is not bound to tcp://).
+    std::size_t refused_connections() const { return guard_ ? guard_->refused() : 0; }
 
   private:
     struct AtomicCounters {
@@ -123,6 +125,7 @@ class Endpoint {
 
     EndpointConfig config_;
     zmq::socket_t socket_;
+    std::unique_ptr<ConnectionGuard> guard_;  ///< set when bound to tcp:// with caps
     std::vector<std::string> bound_;
     std::deque<Message> queue_;
     std::size_t queue_bytes_ = 0;

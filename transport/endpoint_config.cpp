@@ -60,6 +60,9 @@ void EndpointConfig::Validate() const {
     if (socket_buffer_bytes < 0) {
         Reject(*this, "socket_buffer_bytes", std::to_string(socket_buffer_bytes), "must be >= 0");
     }
+    if (handshake_timeout_ms < 0) {
+        Reject(*this, "handshake_timeout_ms", std::to_string(handshake_timeout_ms), "must be >= 0");
+    }
     if (curve) curve->Validate();
     limits.Validate();
     if (shm_threshold_bytes == 0) Reject(*this, "shm_threshold_bytes", "0", "must be positive");

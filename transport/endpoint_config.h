@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "transport/connection_guard.h"
 #include "transport/curve.h"
 #include "transport/message.h"
 #include "transport/shm_segment.h"
@@ -51,8 +52,14 @@ struct EndpointConfig {
     int socket_buffer_bytes = 1 << 20;
     std::optional<CurveConfig> curve;  ///< CURVE security (tcp:// edges between robots)
     DecodeLimits limits;               ///< bounds on received frames
-    std::uint32_t robot_id = 0;        ///< this robot, stamped on control messages it sends
-    std::string node_name;             ///< this actor, stamped on control messages it sends
+    /// Longest a new connection may take to finish the ZMTP (and CURVE) handshake before it is
+    /// dropped (ZMQ_HANDSHAKE_IVL; libzmq's default is 30 s, which lets idle unauthenticated
+    /// connections hold descriptors that long); 0 = no deadline.
+    int handshake_timeout_ms = 2000;
+    /// Caps on accepted connections of a socket bound to tcp:// (ConnectionGuard).
+    ConnectionCaps connection_caps;
+    std::uint32_t robot_id = 0;  ///< this robot, stamped on control messages it sends
+    std::string node_name;       ///< this actor, stamped on control messages it sends
     /// An edge whose addresses are all ipc:// moves each binary frame of at least
     /// shm_threshold_bytes through POSIX shared memory: only a descriptor goes on the socket and
     /// the receiver's frame points into its read-only mapping. Receivers accept descriptors

@@ -39,6 +39,37 @@ bool UpdateWeights(const std::vector<double>& r2, double c2, double mu, double t
     return binary;
 }
 
+/// True for an odometry edge: consecutive keyframes of one robot (either direction). Poses
+/// without ids are numbered along one trajectory, so consecutive global indices.
+bool IsOdometry(const PoseGraph& graph, const RelativePoseMeasurement& e) {
+    const auto n = static_cast<int>(graph.ids.size());
+    if (e.i >= n || e.j >= n) return std::abs(e.i - e.j) == 1;
+    const PoseId& a = graph.ids[static_cast<size_t>(e.i)];
+    const PoseId& b = graph.ids[static_cast<size_t>(e.j)];
+    return a.robot == b.robot && std::abs(a.index - b.index) == 1;
+}
+
+/// Weights within binary_tolerance of 0 still let a gross outlier (r^2 ~ 1e7) pull the estimate.
+/// Snaps the weights to 0/1 (keep_weight), re-solves, then re-applies the TLS rule (weight 1 iff
+/// r^2 <= c^2, the mu -> infinity limit of Prop. 4) until the inlier set is a fixed point.
+void Refine(const Partition& partition, double c2, const GncConfig& config, PoseGraph* weighted,
+            RbcdResult* solved, GncResult* result) {
+    for (int k = 0; k < config.max_iterations; ++k) {
+        const std::vector<double> r2 = EdgeSquaredResiduals(*weighted, solved->X);
+        bool changed = false;
+        for (size_t e = 0; e < r2.size(); ++e) {
+            auto& edge = weighted->edges[e];
+            if (edge.is_known_inlier) continue;
+            const bool keep = k == 0 ? edge.weight >= config.keep_weight : r2[e] <= c2;
+            changed = changed || (keep ? 1.0 : 0.0) != edge.weight;
+            edge.weight = keep ? 1.0 : 0.0;
+        }
+        if (!changed) return;
+        *solved = SolveRbcd(*weighted, partition, solved->X, config.rbcd);
+        result->rbcd_iterations += solved->iterations;
+    }
+}
+
 }  // namespace
 
 void GncConfig::Validate() const {
@@ -72,7 +103,12 @@ GncResult SolveGnc(const PoseGraph& graph, const Partition& partition, const Eig
     const auto start = std::chrono::steady_clock::now();
     const double c2 = config.threshold * config.threshold;
     PoseGraph weighted = graph;
-    for (auto& e : weighted.edges) e.weight = 1.0;
+    for (auto& e : weighted.edges) {
+        e.weight = 1.0;
+        // Odometry is held at weight 1 (as dpgo's GNC does): the kept graph stays connected,
+        // so GNC can never reject every edge and leave a zero problem behind.
+        if (config.keep_odometry && IsOdometry(graph, e)) e.is_known_inlier = true;
+    }
     GncResult result;
     RbcdResult solved = SolveRbcd(weighted, partition, X0, config.rbcd);
     result.rbcd_iterations = solved.iterations;
@@ -96,13 +132,15 @@ GncResult SolveGnc(const PoseGraph& graph, const Partition& partition, const Eig
         }
         mu *= config.mu_growth;
     }
+    if (mu > 0.0) Refine(partition, c2, config, &weighted, &solved, &result);
     result.final_mu = mu;
     result.X = solved.X;
     result.kept = graph;
     result.kept.edges.clear();
     for (size_t e = 0; e < graph.edges.size(); ++e) {
         result.weights.push_back(weighted.edges[e].weight);
-        result.inlier.push_back(weighted.edges[e].weight >= config.keep_weight);
+        result.inlier.push_back(weighted.edges[e].is_known_inlier ||
+                                weighted.edges[e].weight >= config.keep_weight);
         if (!result.inlier.back()) continue;
         result.kept.edges.push_back(graph.edges[e]);
         result.kept.edges.back().weight = 1.0;

@@ -23,7 +23,10 @@ struct GncConfig {
     /// Stop when every weight is within this of 0 or 1 (the TLS problem is then solved), (0, 0.5).
     double binary_tolerance = 1e-3;
     double keep_weight = 0.5;  ///< an edge is kept (inlier) when its final weight >= this
-    RbcdConfig rbcd;           ///< inner solver
+    /// Treat odometry edges (consecutive keyframes of one robot) as known inliers: the kept graph
+    /// then stays connected whatever the loop closures do.
+    bool keep_odometry = true;
+    RbcdConfig rbcd;  ///< inner solver
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -50,7 +53,8 @@ struct GncResult {
 /// Unweighted squared residual r_e^2 of every edge at X (r x (d+1)n, any rank r >= d).
 std::vector<double> EdgeSquaredResiduals(const PoseGraph& graph, const Eigen::MatrixXd& X);
 
-/// GNC-TLS from X0: known inliers (is_known_inlier) keep weight 1; the others start at 1 with
+/// GNC-TLS from X0: known inliers (is_known_inlier, and odometry when config.keep_odometry) keep
+/// weight 1; the others start at 1 with
 /// mu_0 = c^2 / (2 max r^2 - c^2) and follow Yang et al.'s TLS weight update (Prop. 4) while mu
 /// grows; each weighted problem is solved by SolveRbcd warm-started from the last solution.
 GncResult SolveGnc(const PoseGraph& graph, const Partition& partition, const Eigen::MatrixXd& X0,

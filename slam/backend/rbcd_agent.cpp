@@ -157,7 +157,12 @@ RbcdAgent::RbcdAgent(const Eigen::SparseMatrix<double>& Q, int d, const Partitio
         M.coeffRef(c, c) += config.precon_regulariser * (max_diag > 0.0 ? max_diag : 1.0);
     m.factor.setMode(Eigen::CholmodSimplicialLLt);
     m.factor.compute(M);
-    CERTISLAM_CHECK(m.factor.info() == Eigen::Success);
+    if (m.factor.info() != Eigen::Success) {  // input, not a bug: say so instead of aborting
+        throw std::invalid_argument(
+            "RBCD: robot " + std::to_string(robot) +
+            "'s block of the connection Laplacian is not positive definite (rotations not "
+            "orthonormal, or non-finite or absurd weights)");
+    }
     if (config.hessian_preconditioner)
         m.hessian = std::make_unique<HessianPreconditioner>(m.Qaa, d);
     if (config.eliminate_translations) {

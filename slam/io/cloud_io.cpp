@@ -47,8 +47,9 @@ std::string WriteFile(const std::string& path, const std::string& header, const 
 }  // namespace
 
 CloudReadResult ReadKittiBin(const std::string& path) {
-    const auto bytes = ReadFileBytes(path);
-    if (!bytes) return Fail(Status::kCannotOpen, path, 0, "cannot open or read the file");
+    bool too_big = false;
+    const auto bytes = ReadFileBytes(path, &too_big);
+    if (!bytes) return ReadFailure(path, too_big);
     constexpr std::size_t kRecord = 16;  // float32 x y z reflectance
     if (bytes->size() % kRecord != 0) {
         return Fail(Status::kTruncated, path, 0,

@@ -8,22 +8,36 @@
 namespace certislam::slam {
 namespace cloud_io_internal {
 
-std::optional<std::vector<unsigned char>> ReadFileBytes(const std::string& path) {
+std::optional<std::vector<unsigned char>> ReadFileBytes(const std::string& path, bool* too_big) {
     std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) return std::nullopt;
     const std::streamoff size = in.tellg();
     if (size < 0) return std::nullopt;
+    if (static_cast<std::size_t>(size) > kMaxCloudFileBytes) {
+        if (too_big != nullptr) *too_big = true;
+        return std::nullopt;
+    }
     std::vector<unsigned char> bytes(static_cast<std::size_t>(size));
     in.seekg(0);
     if (size > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), size)) return std::nullopt;
     return bytes;
 }
 
+CloudReadResult ReadFailure(const std::string& path, bool too_big) {
+    if (!too_big)
+        return Fail(CloudReadResult::Status::kCannotOpen, path, 0, "cannot open or read the file");
+    return Fail(CloudReadResult::Status::kUnsupported, path, 0,
+                "file is over " + std::to_string(kMaxCloudFileBytes) +
+                    " bytes, the largest cloud file read");
+}
+
 CloudReadResult Fail(CloudReadResult::Status status, const std::string& path, int line,
                      const std::string& message) {
     CloudReadResult result;
     result.status = status;
-    result.error = path + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + message;
+    result.error = path;
+    if (line > 0) result.error.append(":").append(std::to_string(line));
+    result.error.append(": ").append(message);
     return result;
 }
 

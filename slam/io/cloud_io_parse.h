@@ -56,8 +56,31 @@ inline double DecodeScalar(const unsigned char* p, ScalarType type) {
     return 0.0;
 }
 
-/// Reads a whole file; std::nullopt when it cannot be opened or read.
-std::optional<std::vector<unsigned char>> ReadFileBytes(const std::string& path);
+/// a * b, or std::nullopt when the product does not fit in size_t (sizes from a file header).
+inline std::optional<std::size_t> CheckedMul(std::size_t a, std::size_t b) {
+    std::size_t out = 0;
+    if (__builtin_mul_overflow(a, b, &out)) return std::nullopt;
+    return out;
+}
+
+/// a + b, or std::nullopt when the sum does not fit in size_t.
+inline std::optional<std::size_t> CheckedAdd(std::size_t a, std::size_t b) {
+    std::size_t out = 0;
+    if (__builtin_add_overflow(a, b, &out)) return std::nullopt;
+    return out;
+}
+
+/// Largest cloud file read (whole, into memory): far above any LiDAR scan (a 128-beam scan is
+/// ~10 MB), so a larger file is refused before it is loaded.
+inline constexpr std::size_t kMaxCloudFileBytes = std::size_t{2} << 30;
+
+/// Reads a whole file; std::nullopt when it cannot be opened or read, or exceeds
+/// kMaxCloudFileBytes (then *too_big is set when given).
+std::optional<std::vector<unsigned char>> ReadFileBytes(const std::string& path,
+                                                        bool* too_big = nullptr);
+
+/// The error for a file that could not be read (or was over kMaxCloudFileBytes).
+CloudReadResult ReadFailure(const std::string& path, bool too_big);
 
 /// A failed result with status and "PATH: message" (or "PATH:LINE: message" when line > 0).
 CloudReadResult Fail(CloudReadResult::Status status, const std::string& path, int line,

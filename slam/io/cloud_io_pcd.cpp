@@ -83,8 +83,13 @@ std::string FinishHeader(PcdHeader& h) {
                std::to_string(h.sizes.size()) + "/" + std::to_string(h.types.size()) + "/" +
                std::to_string(h.counts.size());
     }
-    if (h.points < 0) h.points = h.width < 0 ? -1 : h.width * h.height;
-    if (h.points < 0) return "neither POINTS nor WIDTH given";
+    if (h.points < 0) {
+        if (h.width < 0) return "neither POINTS nor WIDTH given";
+        const auto wh =
+            CheckedMul(static_cast<std::size_t>(h.width), static_cast<std::size_t>(h.height));
+        if (!wh || *wh > static_cast<std::size_t>(INT64_MAX)) return "WIDTH x HEIGHT overflows";
+        h.points = static_cast<long long>(*wh);
+    }
     int token = 0;
     for (std::size_t i = 0; i < nf; ++i) {
         const auto type = ToScalarType(h.types[i], h.sizes[i]);
@@ -95,7 +100,10 @@ std::string FinishHeader(PcdHeader& h) {
         h.fields[i].type = *type;
         h.fields[i].count = h.counts[i];
         h.fields[i].offset = h.point_bytes;
-        h.point_bytes += static_cast<std::size_t>(h.sizes[i]) * h.counts[i];
+        const auto bytes = CheckedAdd(h.point_bytes, static_cast<std::size_t>(h.sizes[i]) *
+                                                         static_cast<std::size_t>(h.counts[i]));
+        if (!bytes) return "SIZE x COUNT summed over FIELDS overflows";
+        h.point_bytes = *bytes;
         const char* names[3] = {"x", "y", "z"};
         for (int a = 0; a < 3; ++a) {
             if (h.fields[i].name == names[a]) {
@@ -141,11 +149,13 @@ bool ParseHeader(const std::string& path, const std::vector<unsigned char>& byte
 CloudReadResult ReadAscii(const std::string& path, const std::vector<unsigned char>& bytes,
                           const PcdHeader& h) {
     CloudReadResult result;
-    result.cloud.reserve(static_cast<std::size_t>(h.points));
     std::size_t offset = h.data_offset;
     int line_no = h.data_line;
     std::size_t tokens = 0;
     for (const auto& f : h.fields) tokens += static_cast<std::size_t>(f.count);
+    // A data line holds `tokens` values and as many separators: the file bounds the reserve.
+    const std::size_t most = (bytes.size() - offset) / (2 * tokens);
+    result.cloud.reserve(std::min(static_cast<std::size_t>(h.points), most));
     long long read = 0;
     while (read < h.points && offset < bytes.size()) {
         const LineView line = NextLine(bytes, offset);
@@ -230,6 +240,17 @@ bool LzfDecompress(const unsigned char* in, std::size_t in_size, unsigned char* 
     return op == out_end;
 }
 
+// A back reference (3 bytes) yields at most 264 bytes, a literal run never more than it reads.
+constexpr std::size_t kLzfMaxExpansion = 88;
+
+// "POINTS x B = N" with N in checked arithmetic ("overflows size_t" when it does not fit).
+std::string Product(const PcdHeader& h) {
+    const auto n = CheckedMul(h.point_bytes, static_cast<std::size_t>(h.points));
+    return "POINTS " + std::to_string(h.points) + " x record size " +
+           std::to_string(h.point_bytes) + " = " +
+           (n ? std::to_string(*n) : std::string("overflows size_t"));
+}
+
 CloudReadResult ReadCompressed(const std::string& path, const std::vector<unsigned char>& bytes,
                                const PcdHeader& h) {
     const std::size_t avail = bytes.size() - h.data_offset;
@@ -237,16 +258,26 @@ CloudReadResult ReadCompressed(const std::string& path, const std::vector<unsign
     std::uint32_t compressed = 0, uncompressed = 0;
     std::memcpy(&compressed, bytes.data() + h.data_offset, 4);
     std::memcpy(&uncompressed, bytes.data() + h.data_offset + 4, 4);
-    const std::size_t expected = h.point_bytes * static_cast<std::size_t>(h.points);
-    if (uncompressed != expected) {
-        return Fail(Status::kBadData, path, 0,
-                    "binary_compressed: uncompressed size " + std::to_string(uncompressed) +
-                        " != POINTS x point size " + std::to_string(expected));
+    const auto product = CheckedMul(h.point_bytes, static_cast<std::size_t>(h.points));
+    if (!product || *product != uncompressed) {
+        return Fail(Status::kBadData, path, h.data_line,
+                    "binary_compressed at byte " + std::to_string(h.data_offset) +
+                        ": uncompressed size " + std::to_string(uncompressed) + " must equal " +
+                        Product(h));
     }
+    const std::size_t expected = *product;
     if (avail - 8 < compressed) {
-        return Fail(Status::kTruncated, path, 0,
-                    "binary_compressed: " + std::to_string(compressed) +
-                        " compressed bytes declared, " + std::to_string(avail - 8) + " present");
+        return Fail(Status::kTruncated, path, h.data_line,
+                    "binary_compressed at byte " + std::to_string(h.data_offset) + ": " +
+                        std::to_string(compressed) + " compressed bytes declared, " +
+                        std::to_string(avail - 8) + " present");
+    }
+    if (expected / kLzfMaxExpansion > compressed) {
+        return Fail(Status::kBadData, path, h.data_line,
+                    "binary_compressed at byte " + std::to_string(h.data_offset) + ": " +
+                        std::to_string(compressed) + " LZF bytes cannot expand to " +
+                        std::to_string(expected) + " (LZF expands at most " +
+                        std::to_string(kLzfMaxExpansion) + "x)");
     }
     std::vector<unsigned char> raw(expected);
     if (expected > 0 &&
@@ -267,13 +298,12 @@ CloudReadResult ParsePcd(const std::string& path, const std::vector<unsigned cha
     if (h.data != "binary") {
         return Fail(Status::kUnsupported, path, h.data_line, "DATA '" + h.data + "' unknown");
     }
-    const std::size_t expected = h.point_bytes * static_cast<std::size_t>(h.points);
+    const auto expected = CheckedMul(h.point_bytes, static_cast<std::size_t>(h.points));
     const std::size_t avail = bytes.size() - h.data_offset;
-    if (avail < expected) {
-        return Fail(Status::kTruncated, path, 0,
-                    "POINTS " + std::to_string(h.points) + " x " + std::to_string(h.point_bytes) +
-                        " bytes = " + std::to_string(expected) + " bytes of data expected, " +
-                        std::to_string(avail) + " present");
+    if (!expected || avail < *expected) {
+        return Fail(Status::kTruncated, path, h.data_line,
+                    "binary data at byte " + std::to_string(h.data_offset) + ": " + Product(h) +
+                        " bytes must fit in the file, " + std::to_string(avail) + " present");
     }
     return DecodeBinary(bytes.data() + h.data_offset, h, /*field_major=*/false);
 }
@@ -281,11 +311,9 @@ CloudReadResult ParsePcd(const std::string& path, const std::vector<unsigned cha
 }  // namespace cloud_io_internal
 
 CloudReadResult ReadPcd(const std::string& path) {
-    const auto bytes = cloud_io_internal::ReadFileBytes(path);
-    if (!bytes) {
-        return cloud_io_internal::Fail(CloudReadResult::Status::kCannotOpen, path, 0,
-                                       "cannot open or read the file");
-    }
+    bool too_big = false;
+    const auto bytes = cloud_io_internal::ReadFileBytes(path, &too_big);
+    if (!bytes) return cloud_io_internal::ReadFailure(path, too_big);
     return cloud_io_internal::ParsePcd(path, *bytes);
 }
 

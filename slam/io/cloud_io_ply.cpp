@@ -1,4 +1,6 @@
 // The PLY reader: vertex x y z of ascii and binary_little_endian files.
+#include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -112,11 +114,27 @@ bool ParseHeader(const std::string& path, const std::vector<unsigned char>& byte
     return false;
 }
 
-// Walks binary records of one element; `on_value(prop, value)` sees every scalar property.
-// Returns false when the data runs out.
+// Bytes of the smallest record of `e` (a list of length 0 holds only its count).
+std::size_t MinRecordBytes(const PlyElement& e) {
+    std::size_t bytes = 0;
+    for (const PlyProperty& p : e.properties) {
+        bytes += static_cast<std::size_t>(p.is_list ? p.count_type.size : p.type.size);
+    }
+    return bytes;
+}
+
+// Walks binary records of one element; `on_record(values)` sees every scalar property.
+// Returns an error text (data ends early, negative list length) or "".
 template <typename OnRecord>
-bool WalkBinary(const std::vector<unsigned char>& bytes, std::size_t& offset, const PlyElement& e,
-                OnRecord on_record) {
+std::string WalkBinary(const std::vector<unsigned char>& bytes, std::size_t& offset,
+                       const PlyElement& e, OnRecord on_record) {
+    const auto least = CheckedMul(static_cast<std::size_t>(e.count), MinRecordBytes(e));
+    if (!least || *least > bytes.size() - offset) {
+        return std::to_string(e.count) + " records of at least " +
+               std::to_string(MinRecordBytes(e)) + " bytes do not fit in the " +
+               std::to_string(bytes.size() - offset) + " bytes left";
+    }
+    if (e.properties.empty()) return "";  // records without properties hold no bytes
     std::vector<double> values(e.properties.size(), 0.0);
     for (long long r = 0; r < e.count; ++r) {
         for (std::size_t k = 0; k < e.properties.size(); ++k) {
@@ -124,18 +142,20 @@ bool WalkBinary(const std::vector<unsigned char>& bytes, std::size_t& offset, co
             std::size_t items = 1;
             if (p.is_list) {
                 const auto cs = static_cast<std::size_t>(p.count_type.size);
-                if (bytes.size() - offset < cs) return false;
-                items = static_cast<std::size_t>(DecodeScalar(bytes.data() + offset, p.count_type));
+                if (bytes.size() - offset < cs) return "data ends inside a list length";
+                const double length = DecodeScalar(bytes.data() + offset, p.count_type);
+                if (length < 0) return "negative list length " + std::to_string(length);
+                items = static_cast<std::size_t>(length);  // < 2^32: count types are <= 4 bytes
                 offset += cs;
             }
             const std::size_t need = items * static_cast<std::size_t>(p.type.size);
-            if (bytes.size() - offset < need) return false;
+            if (bytes.size() - offset < need) return "data ends inside a record";
             if (!p.is_list) values[k] = DecodeScalar(bytes.data() + offset, p.type);
             offset += need;
         }
         on_record(values);
     }
-    return true;
+    return "";
 }
 
 CloudReadResult ReadData(const std::string& path, const std::vector<unsigned char>& bytes,
@@ -146,15 +166,19 @@ CloudReadResult ReadData(const std::string& path, const std::vector<unsigned cha
     for (std::size_t e = 0; e <= vertex; ++e) {
         const PlyElement& el = h.elements[e];
         const bool is_vertex = e == vertex;
-        if (is_vertex) result.cloud.reserve(static_cast<std::size_t>(el.count));
+        // Every record takes a line (ascii) or at least one byte (binary x y z): bounded.
+        if (is_vertex) {
+            result.cloud.reserve(
+                std::min(static_cast<std::size_t>(el.count), bytes.size() - offset));
+        }
         auto on_record = [&](const std::vector<double>& v) {
             if (is_vertex) AddPoint(result, v[xyz[0]], v[xyz[1]], v[xyz[2]]);
         };
         if (h.binary) {
-            if (!WalkBinary(bytes, offset, el, on_record)) {
+            const std::size_t at = offset;
+            if (const std::string err = WalkBinary(bytes, offset, el, on_record); !err.empty()) {
                 return Fail(Status::kTruncated, path, 0,
-                            "data ends inside element '" + el.name + "' (" +
-                                std::to_string(el.count) + " records declared)");
+                            "element '" + el.name + "' at byte " + std::to_string(at) + ": " + err);
             }
             continue;
         }
@@ -175,7 +199,18 @@ CloudReadResult ReadData(const std::string& path, const std::vector<unsigned cha
                 const auto parsed = w < words.size() ? ParseDouble(words[w]) : std::nullopt;
                 if (!parsed) return Fail(Status::kBadData, path, line_no, "missing or bad value");
                 values[k] = *parsed;
-                w += el.properties[k].is_list ? 1 + static_cast<std::size_t>(*parsed) : 1;
+                if (!el.properties[k].is_list) {
+                    ++w;
+                    continue;
+                }
+                // A list length must be a whole number of the values left on the line.
+                if (!(*parsed >= 0) || *parsed != std::floor(*parsed) ||
+                    *parsed > static_cast<double>(words.size() - w - 1)) {
+                    return Fail(Status::kBadData, path, line_no,
+                                "list length " + std::string(words[w]) +
+                                    " is not a count of the values that follow");
+                }
+                w += 1 + static_cast<std::size_t>(*parsed);
             }
             on_record(values);
         }
@@ -186,8 +221,9 @@ CloudReadResult ReadData(const std::string& path, const std::vector<unsigned cha
 }  // namespace
 
 CloudReadResult ReadPly(const std::string& path) {
-    const auto bytes = ReadFileBytes(path);
-    if (!bytes) return Fail(Status::kCannotOpen, path, 0, "cannot open or read the file");
+    bool too_big = false;
+    const auto bytes = ReadFileBytes(path, &too_big);
+    if (!bytes) return ReadFailure(path, too_big);
     PlyHeader h;
     CloudReadResult result;
     if (!ParseHeader(path, *bytes, h, result)) return result;

@@ -48,6 +48,9 @@ std::vector<double> Numbers(const std::vector<std::string>& tokens, size_t first
         values[k] = std::strtod(tok.c_str(), &end);
         if (end == tok.c_str() || *end != '\0') throw LineError{"not a number: '" + tok + "'"};
         if (!std::isfinite(values[k])) throw LineError{"non-finite value: '" + tok + "'"};
+        if (std::abs(values[k]) > kMaxInformation) {
+            throw LineError{"value '" + tok + "' is beyond +-" + std::to_string(kMaxInformation)};
+        }
     }
     return values;
 }
@@ -83,9 +86,21 @@ double TraceOfInverse(const Eigen::MatrixXd& block, const char* name) {
     return tr;
 }
 
-// Quaternion (qx qy qz qw) to a matrix without renormalising it, as SE-Sync's reader does.
-Eigen::Matrix3d QuaternionMatrix(double qx, double qy, double qz, double qw) {
-    return Eigen::Quaterniond(qw, qx, qy, qz).toRotationMatrix();
+// Quaternion (qx qy qz qw) to a rotation by QuaternionRotation's rules; throws LineError.
+Eigen::Matrix3d QuaternionMatrix(double qx, double qy, double qz, double qw,
+                                 bool always_normalise = false) {
+    std::string why;
+    const auto R = QuaternionRotation(qx, qy, qz, qw, &why, always_normalise);
+    if (!R) throw LineError{why};
+    return *R;
+}
+
+// Throws LineError when the edge's values are out of range (CheckMeasurementRange).
+RelativePoseMeasurement InRange(RelativePoseMeasurement e) {
+    if (const std::string why = CheckMeasurementRange(e.t, e.kappa, e.tau); !why.empty()) {
+        throw LineError{why};
+    }
+    return e;
 }
 
 Eigen::Matrix2d Rot2(double theta) {
@@ -107,7 +122,7 @@ RelativePoseMeasurement ParseSe2Edge(const std::vector<std::string>& tok) {
     e.tau = 2.0 / TraceOfInverse(tt, "translation");
     e.kappa = v[8];
     if (!(e.kappa > 0.0)) throw LineError{"information block rotation is not positive definite"};
-    return e;
+    return InRange(e);
 }
 
 RelativePoseMeasurement ParseSe3Edge(const std::vector<std::string>& tok) {
@@ -121,7 +136,7 @@ RelativePoseMeasurement ParseSe3Edge(const std::vector<std::string>& tok) {
     const Eigen::MatrixXd omega = UpperTriangle(v, 7, 6);
     e.tau = 3.0 / TraceOfInverse(omega.topLeftCorner(3, 3), "translation");
     e.kappa = 3.0 / (2.0 * TraceOfInverse(omega.bottomRightCorner(3, 3), "rotation"));
-    return e;
+    return InRange(e);
 }
 
 struct Vertex {
@@ -140,8 +155,10 @@ Vertex ParseVertex(const std::vector<std::string>& tok, int d) {
     } else {
         const std::vector<double> x = Numbers(tok, 2, 7);
         v.t = Eigen::Vector3d(x[0], x[1], x[2]);
-        // An initial guess must be a rotation: here the quaternion is normalised.
-        v.R = Eigen::Quaterniond(x[6], x[3], x[4], x[5]).normalized().toRotationMatrix();
+        v.R = QuaternionMatrix(x[3], x[4], x[5], x[6], /*always_normalise=*/true);  // a guess
+    }
+    if (v.t.cwiseAbs().maxCoeff() > kMaxTranslation) {
+        throw LineError{"translation beyond +-" + std::to_string(kMaxTranslation) + " m"};
     }
     return v;
 }
@@ -230,16 +247,49 @@ PoseGraphReadResult ReadG2oStream(std::istream& in, const std::string& name) {
     }
     graph.d = dim == 0 ? 3 : dim;
     for (const auto& e : graph.edges) graph.n = std::max({graph.n, e.i + 1, e.j + 1});
-    graph.ids.resize(graph.n);
-    for (int g = 0; g < graph.n; ++g) graph.ids[g] = PoseId{0, g};
     if (graph.edges.empty()) return Fail(Status::kDisconnected, name + ": no edges");
-    if (!IsConnected(graph)) {
+    // A connected graph has n <= edges + 1: checked before allocating per-pose arrays.
+    if (static_cast<std::size_t>(graph.n) > graph.edges.size() + 1 || !IsConnected(graph)) {
         return Fail(Status::kDisconnected, name + ": graph is not connected (" +
                                                std::to_string(graph.n) + " poses, " +
                                                std::to_string(graph.edges.size()) + " edges)");
     }
+    graph.ids.resize(graph.n);
+    for (int g = 0; g < graph.n; ++g) graph.ids[g] = PoseId{0, g};
     FillInitialGuess(vertices, &graph);
     return result;
+}
+
+std::optional<Eigen::Matrix3d> QuaternionRotation(double qx, double qy, double qz, double qw,
+                                                  std::string* why, bool always_normalise) {
+    const Eigen::Quaterniond q(qw, qx, qy, qz);
+    const double norm = q.norm();
+    if (!always_normalise && std::abs(norm - 1.0) <= kQuaternionRounding) {
+        return q.toRotationMatrix();  // as written (SE-Sync's convention for the benchmarks)
+    }
+    if (!(std::abs(norm - 1.0) <= kQuaternionNormTolerance)) {
+        std::ostringstream out;
+        out << "quaternion norm " << std::setprecision(9) << norm << " is not within "
+            << kQuaternionNormTolerance << " of 1 (not a rotation)";
+        *why = out.str();
+        return std::nullopt;
+    }
+    return q.normalized().toRotationMatrix();
+}
+
+std::string CheckMeasurementRange(const Eigen::VectorXd& t, double kappa, double tau) {
+    if (!t.allFinite() || t.cwiseAbs().maxCoeff() > kMaxTranslation) {
+        return "translation beyond +-" + std::to_string(kMaxTranslation) + " m";
+    }
+    for (const double w : {kappa, tau}) {
+        if (!(w >= kMinWeight && w <= kMaxInformation)) {
+            std::ostringstream out;
+            out << "weight (kappa " << kappa << ", tau " << tau << ") not in [" << kMinWeight
+                << ", " << kMaxInformation << "]";
+            return out.str();
+        }
+    }
+    return "";
 }
 
 PoseGraphReadResult ReadG2o(const std::string& path) {

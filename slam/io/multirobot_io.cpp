@@ -18,6 +18,7 @@ namespace {
 constexpr const char* kHeader =
     "robot_src,pose_src,robot_dst,pose_dst,qx,qy,qz,qw,tx,ty,tz,kappa,tau,is_known_inlier,weight";
 constexpr int kColumns = 15;
+constexpr int kMaxId = 100'000'000;  ///< as the g2o reader's pose ids
 
 struct CsvEdge {
     PoseId src;
@@ -47,17 +48,21 @@ std::string ParseRow(const std::string& line, CsvEdge* edge) {
         return "expected " + std::to_string(kColumns) + " columns, got " + std::to_string(v.size());
     }
     for (int k : {0, 1, 2, 3}) {
-        if (v[k] < 0 || v[k] != std::floor(v[k])) return "bad robot or pose id";
+        if (v[k] < 0 || v[k] != std::floor(v[k]) || v[k] > kMaxId) {
+            return "bad robot or pose id (a whole number in [0, " + std::to_string(kMaxId) + "])";
+        }
     }
     edge->src = PoseId{static_cast<int>(v[0]), static_cast<int>(v[1])};
     edge->dst = PoseId{static_cast<int>(v[2]), static_cast<int>(v[3])};
-    edge->R = Eigen::Quaterniond(v[7], v[4], v[5], v[6]).toRotationMatrix();  // not renormalised
+    std::string why;
+    const auto R = QuaternionRotation(v[4], v[5], v[6], v[7], &why);
+    if (!R) return why;
+    edge->R = *R;
     edge->t = Eigen::Vector3d(v[8], v[9], v[10]);
     edge->kappa = v[11];
     edge->tau = v[12];
     edge->inlier = v[13] != 0.0;
-    if (!(edge->kappa > 0.0) || !(edge->tau > 0.0)) return "kappa and tau must be positive";
-    return {};
+    return CheckMeasurementRange(edge->t, edge->kappa, edge->tau);
 }
 
 PoseGraphReadResult Fail(PoseGraphReadResult::Status status, std::string error) {
@@ -108,6 +113,14 @@ PoseGraphReadResult ReadMultiRobotCsv(const std::string& dir) {
         }
     }
     if (robots == 0) return Fail(Status::kFileError, dir + ": no robot0/measurements.csv");
+    // A connected graph has at most edges + 1 poses: checked before allocating the ids.
+    std::size_t poses = 0;
+    for (const auto& [robot, count] : poses_of_robot) poses += static_cast<std::size_t>(count);
+    if (edges.empty() || poses > edges.size() + 1) {
+        return Fail(Status::kDisconnected, dir + ": graph is not connected (" +
+                                               std::to_string(poses) + " poses, " +
+                                               std::to_string(edges.size()) + " edges)");
+    }
     PoseGraphReadResult result;
     PoseGraph& graph = result.graph;
     graph.d = 3;

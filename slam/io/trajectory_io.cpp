@@ -17,12 +17,20 @@ std::string Where(const std::string& path, int line) {
     return path + ":" + std::to_string(line) + ": ";
 }
 
-/// Splits a line into numbers; false with a reason when a token is not a finite number.
+/// Most numbers on a line of either format (KITTI: 12); parsing stops past it.
+constexpr std::size_t kMaxNumbers = 12;
+
+/// Splits a line into numbers; false with a reason when a token is not a finite number or the
+/// line has more than kMaxNumbers.
 bool ParseNumbers(const std::string& line, std::vector<double>* values, std::string* why) {
     std::istringstream in(line);
     std::string token;
     values->clear();
     while (in >> token) {
+        if (values->size() == kMaxNumbers) {
+            *why = "more than " + std::to_string(kMaxNumbers) + " numbers on the line";
+            return false;
+        }
         char* end = nullptr;
         const double v = std::strtod(token.c_str(), &end);
         if (end == token.c_str() || *end != '\0') {

@@ -217,16 +217,24 @@ const std::vector<std::string>& SourceKindNames() {
     return names;
 }
 
-const std::vector<ConfigKey>& TeamConfigKeys() {
-    using Kind = SourceConfig::Kind;
-    using actors::TeamMap;
-    const Range positive{0.0, kInf, true};
-    const Range non_negative{0.0};
-    static const std::vector<ConfigKey> keys{
+namespace {
+
+using actors::TeamMap;
+using Kind = SourceConfig::Kind;
+const Range positive{0.0, kInf, true};
+const Range non_negative{0.0};
+
+std::vector<ConfigKey> TopKeys() {
+    return {
         RobotList(),
         Str(
             "log_dir", [](TeamConfig & c, int) -> auto& { return c.log_dir; },
             "durable per-robot logs here, replayed on start (empty: none)"),
+    };
+}
+
+std::vector<ConfigKey> SourceKeys() {
+    return {
         // source
         Choice<Kind>(
             "source.kind", [](TeamConfig & c, int) -> auto& { return c.source.kind; },
@@ -300,6 +308,11 @@ const std::vector<ConfigKey>& TeamConfigKeys() {
             "source.offset.rpy_deg",
             [](TeamConfig & c, int) -> auto& { return c.source.offset_rpy_deg; },
             "rotation of the offset: roll, pitch, yaw in degrees", "split"),
+    };
+}
+
+std::vector<ConfigKey> SolverAndCertifierKeys() {
+    return {
         // solver
         Num<int>(
             "solver.rank", [](TeamConfig & c, int) -> auto& { return c.node.solver.solver.rank; },
@@ -336,6 +349,11 @@ const std::vector<ConfigKey>& TeamConfigKeys() {
             "certifier.tolerance",
             [](TeamConfig & c, int) -> auto& { return c.node.certifier.lanczos.tolerance; },
             positive, "Lanczos residual tolerance"),
+    };
+}
+
+std::vector<ConfigKey> MatcherKeys() {
+    return {
         // matcher
         Num<double>(
             "matcher.max_sc_distance",
@@ -374,6 +392,11 @@ const std::vector<ConfigKey>& TeamConfigKeys() {
                 return c.node.matcher.registration.max_correspondence_m;
             },
             positive, "fine GICP correspondence gate"),
+    };
+}
+
+std::vector<ConfigKey> MappingAndNetworkKeys() {
+    return {
         // mapping
         Flag(
             "mapping.enabled", [](TeamConfig & c, int) -> auto& { return c.node.mapping; },
@@ -416,6 +439,19 @@ const std::vector<ConfigKey>& TeamConfigKeys() {
             [](TeamConfig & c, int r) -> auto& { return c.network[r].secret_key; },
             "PREFIX.key, read by that robot only"),
     };
+}
+
+}  // namespace
+
+const std::vector<ConfigKey>& TeamConfigKeys() {
+    static const std::vector<ConfigKey> keys = [] {
+        std::vector<ConfigKey> all;
+        for (auto part : {TopKeys(), SourceKeys(), SolverAndCertifierKeys(), MatcherKeys(),
+                          MappingAndNetworkKeys()}) {
+            for (auto& key : part) all.push_back(std::move(key));
+        }
+        return all;
+    }();
     return keys;
 }
 

@@ -18,8 +18,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         return 0;
     }
     for (const auto& e : r.graph.edges) {
-        const bool finite = e.R.allFinite() && e.t.allFinite() && std::isfinite(e.kappa) &&
-                            std::isfinite(e.tau);
+        const bool finite =
+            e.R.allFinite() && e.t.allFinite() && std::isfinite(e.kappa) && std::isfinite(e.tau);
         const auto d = e.R.rows();
         const double off = (e.R.transpose() * e.R - Eigen::MatrixXd::Identity(d, d)).norm();
         if (!finite || off > 1e-2 || !(e.kappa >= kMinWeight) || !(e.tau >= kMinWeight) ||

@@ -43,6 +43,7 @@ TARGETS = {
     "certislam_pipeline": "certify/pipeline",
     "certislam_actors": "actors",
     "certislam": "bin",
+    "certislam_team_config": "bin",
 }
 
 

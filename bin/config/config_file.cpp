@@ -88,6 +88,8 @@ class FileReader {
         if (!map.IsMap()) Fail(map, shown.empty() ? "(top level)" : shown, "must be a mapping");
         for (const auto& item : map) {
             const std::string name = item.first.Scalar();
+            // The `ros` section belongs to the ROS node, which checks it itself (bin/ros).
+            if (pattern.empty() && name == "ros") continue;
             std::string child = Join(pattern, name);
             int child_robot = robot;
             if (Under(child).empty() && !Under(Join(pattern, kRobot)).empty()) {

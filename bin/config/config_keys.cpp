@@ -32,7 +32,11 @@ struct Range {
 
 std::string Number(double v) {
     char buffer[64];
-    const auto end = std::to_chars(buffer, buffer + sizeof(buffer), v).ptr;
+    // Whole numbers as integers (to_chars' shortest form would print 100000 as 1e+05).
+    const bool whole = std::isfinite(v) && std::abs(v) < 1e15 && v == std::floor(v);
+    const auto end =
+        whole ? std::to_chars(buffer, buffer + sizeof(buffer), static_cast<long long>(v)).ptr
+              : std::to_chars(buffer, buffer + sizeof(buffer), v).ptr;
     return std::string(buffer, end);
 }
 

@@ -9,6 +9,7 @@
 
 #include "actors/robot_node.h"
 #include "actors/wiring.h"
+#include "bin/verdict.h"
 
 namespace certislam::bin {
 namespace {
@@ -32,32 +33,6 @@ actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate)
     config.matcher.registration.inlier_distance_m =
         std::max(config.matcher.registration.inlier_distance_m, 0.4);
     return config;
-}
-
-const char* VerdictName(v1::CertificateVerdict verdict) {
-    switch (verdict) {
-        case v1::CERTIFICATE_VERDICT_CERTIFIED:
-            return "certified";
-        case v1::CERTIFICATE_VERDICT_NOT_CERTIFIED:
-            return "not optimal";
-        case v1::CERTIFICATE_VERDICT_INCONCLUSIVE:
-            return "inconclusive";
-        default:
-            return "unspecified";
-    }
-}
-
-const char* PathName(v1::CertificatePath path) {
-    switch (path) {
-        case v1::CERTIFICATE_PATH_DISTRIBUTED:
-            return "distributed";
-        case v1::CERTIFICATE_PATH_CENTRALISED:
-            return "centralised";
-        case v1::CERTIFICATE_PATH_FALLBACK:
-            return "fallback";
-        default:
-            return "unspecified";
-    }
 }
 
 void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
@@ -84,7 +59,7 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
         result->certified = (node == nodes.front() || result->certified) && certified;
         if (node == nodes.front()) {  // the anchor's certifier reports to every robot
             result->verdict = VerdictName(report.verdict());
-            result->certificate_path = PathName(report.path());
+            result->certificate_path = CertificatePathName(report.path());
             result->lambda_min = report.lambda_min();
             // A bound is proven only by the central check of a certified report; a
             // distributed round sends none.

@@ -24,7 +24,7 @@ void LiveIngestConfig::Validate() const {
 }
 
 LiveKeyframes::LiveKeyframes(LiveIngestConfig config)
-    : config_(std::move(config)), selector_(config_.selection) {
+    : config_(config), selector_(config_.selection) {
     config_.Validate();
 }
 
@@ -97,7 +97,7 @@ void LiveKeyframes::PairLocked(Cloud cloud) {
                                [](const Odom& o, std::int64_t s) { return o.stamp_ns < s; });
     const Odom* best = nullptr;
     std::int64_t best_gap = max_gap_ns;
-    for (auto c : {it, it == odometry_.begin() ? odometry_.end() : it - 1}) {
+    for (const auto& c : {it, it == odometry_.begin() ? odometry_.end() : it - 1}) {
         if (c == odometry_.end()) continue;
         const std::int64_t gap = std::llabs(c->stamp_ns - cloud.stamp_ns);
         if (gap <= best_gap) {

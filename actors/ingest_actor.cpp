@@ -35,7 +35,7 @@ void IngestActor::OnStart() {
             if (m.Is<v1::Keyframe>()) replay_.push_back(std::move(m));
         }
         logged_ = static_cast<int>(replay_.size());
-        log_ = std::make_unique<DurableLog>(config_.log_path);
+        log_ = std::make_unique<DurableLog>(config_.log_path, config_.log_identity);
     }
     Every(config_.period, [this] { Tick(); });
     Every(config_.end_marker_period, [this] {

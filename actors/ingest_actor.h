@@ -25,7 +25,8 @@ struct IngestConfig {
     int local_subscribers = 3;                         ///< wait for this many subscribers, >= 0
     std::chrono::milliseconds period{2};               ///< one keyframe per period, > 0
     std::chrono::milliseconds end_marker_period{500};  ///< end marker repeated this often, > 0
-    std::string log_path;  ///< durable keyframe log (replayed on start); empty: none
+    std::string log_path;      ///< durable keyframe log (replayed on start); empty: none
+    std::string log_identity;  ///< the mission identity written in a new log's header
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;

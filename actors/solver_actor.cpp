@@ -38,7 +38,7 @@ void SolverActor::OnStart() {
     if (!config_.log_path.empty()) {
         // Loops accepted before a restart (some found by peers that will not send them again).
         for (const auto& m : ReadDurableLog(config_.log_path).messages) OnLoop(m, true);
-        log_ = std::make_unique<DurableLog>(config_.log_path);
+        log_ = std::make_unique<DurableLog>(config_.log_path, config_.log_identity);
     }
     Every(config_.tick, [this] { Tick(); });
     Every(config_.heartbeat, [this] { Heartbeat(); });

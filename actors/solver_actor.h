@@ -32,7 +32,8 @@ struct SolverActorConfig {
     /// Off by default: with a period, test_actors_solver_actor's silent-neighbour case ends with
     /// both robots locally converged away from the optimum (cause not found yet).
     std::chrono::milliseconds publish_period{0};
-    std::string log_path;  ///< durable log of accepted loop closures (replayed); empty: none
+    std::string log_path;      ///< durable log of accepted loop closures (replayed); empty: none
+    std::string log_identity;  ///< the mission identity written in a new log's header
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;

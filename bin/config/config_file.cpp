@@ -3,6 +3,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <fstream>
+#include <iterator>
 #include <sstream>
 #include <stdexcept>
 
@@ -200,6 +202,31 @@ std::string DumpConfigYaml(const std::string& kind) {
             }
         }
         i = end;
+    }
+    return out.str();
+}
+
+std::string MissionIdentity(const TeamConfig& config, int robot) {
+    const std::string kind = Under("source.kind").front()->show(config, 0);
+    std::ostringstream out;
+    out << "robot: " << robot << "\n";
+    for (const auto& key : TeamConfigKeys()) {
+        if (!InKind(key, kind) || StartsWith(key.path, "log_") ||
+            StartsWith(key.path, "network.")) {
+            continue;
+        }
+        const bool per_robot = key.path.find(kRobot) != std::string::npos;
+        for (const int r : per_robot ? config.robots : std::vector<int>{0}) {
+            std::string path = key.path;
+            if (per_robot)
+                path.replace(path.find(kRobot), std::string(kRobot).size(), std::to_string(r));
+            out << path << ": " << key.show(config, r) << "\n";
+        }
+    }
+    const auto own = config.network.find(robot);
+    if (own != config.network.end() && !own->second.public_key.empty()) {
+        std::ifstream key(own->second.public_key);
+        out << "public_key: " << std::string(std::istreambuf_iterator<char>(key), {}) << "\n";
     }
     return out.str();
 }

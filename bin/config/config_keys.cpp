@@ -234,6 +234,12 @@ std::vector<ConfigKey> TopKeys() {
         Str(
             "log_dir", [](TeamConfig & c, int) -> auto& { return c.log_dir; },
             "durable per-robot logs here, replayed on start (empty: none)"),
+        Choice<actors::StaleLogPolicy>(
+            "log_stale", [](TeamConfig & c, int) -> auto& { return c.log_stale; },
+            {{"refuse", actors::StaleLogPolicy::kRefuse},
+             {"move_aside", actors::StaleLogPolicy::kMoveAside}},
+            "a log of another mission or a corrupt one: refuse to start, or move it to "
+            "FILE.stale-N and start afresh"),
     };
 }
 

@@ -38,6 +38,11 @@ const std::vector<std::string>& SourceKindNames();
 /// key of another source kind, a wrong type or a value out of range.
 void ApplyConfigFile(const YAML::Node& root, TeamConfig* config);
 
+/// What makes `robot`'s mission in `config`, one "key: value" line each (every key of its source
+/// kind but where logs go and network addresses, its id and its public key's contents): the
+/// identity its durable logs carry.
+std::string MissionIdentity(const TeamConfig& config, int robot);
+
 /// A complete configuration for source kind `kind` with every default and a comment per key.
 /// Throws std::invalid_argument when `kind` is not a source kind.
 std::string DumpConfigYaml(const std::string& kind);

@@ -5,12 +5,14 @@
 #include <yaml-cpp/yaml.h>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
 
+#include "actors/durable_log.h"
 #include "bin/command.h"
 #include "bin/config/config_keys.h"
 #include "bin/verdict.h"
@@ -98,6 +100,17 @@ actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot) {
         const std::string prefix = config.log_dir + "/robot" + std::to_string(robot);
         node.ingest.log_path = prefix + ".keyframes.log";
         node.solver.log_path = prefix + ".loops.log";
+        const std::string identity = MissionIdentity(config, robot);
+        node.ingest.log_identity = identity;
+        node.solver.log_identity = identity;
+        for (const std::string& log : {node.ingest.log_path, node.solver.log_path}) {
+            const actors::DurableLogCheck check =
+                actors::PrepareDurableLog(log, identity, config.log_stale);
+            if (!check.moved_to.empty()) {
+                std::fprintf(stderr, "certislam: %s was stale or corrupt: moved to %s\n",
+                             log.c_str(), check.moved_to.c_str());
+            }
+        }
     }
     return node;
 }

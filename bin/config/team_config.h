@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "actors/durable_log.h"
 #include "actors/robot_node.h"
 #include "actors/wiring.h"
 #include "bin/config/team_config_sources.h"
@@ -28,10 +29,13 @@ struct TeamConfig {
     actors::RobotNodeConfig node;                ///< actors' settings
     std::map<int, RobotEndpointConfig> network;  ///< robot mode: per robot
     std::string log_dir;  ///< durable per-robot logs here (replayed on start); empty: none
-    std::string path;     ///< the file it came from (for messages)
+    actors::StaleLogPolicy log_stale = actors::StaleLogPolicy::kRefuse;  ///< another mission's log
+    std::string path;  ///< the file it came from (for messages)
 };
 
-/// The node settings of `robot` (its durable log paths under log_dir).
+/// The node settings of `robot`: its durable log paths under log_dir, checked against the
+/// mission's identity (a stale or corrupt log is refused or moved aside by log_stale; throws
+/// std::runtime_error naming the log).
 actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot);
 
 /// Reads a configuration file (YAML; JSON is YAML too) against TeamConfigKeys(). Throws

@@ -1,5 +1,6 @@
 // Durable per-robot log: messages come back intact after a restart, a torn last record is
-// ignored, and a restarted ingest actor publishes its logged keyframes again before new ones.
+// cut off, a log of another mission or a corrupt one is refused or moved aside, and a restarted
+// ingest actor publishes its logged keyframes again before new ones.
 #include "actors/durable_log.h"
 
 #include <gtest/gtest.h>
@@ -56,6 +57,91 @@ TEST(DurableLog, MessagesSurviveAndATornTailIsIgnored) {
     }
     EXPECT_TRUE(ReadDurableLog(TempPath("missing")).messages.empty());
     std::filesystem::remove(path);
+}
+
+void AppendKeyframes(const std::string& path, const std::string& identity, int first, int last) {
+    DurableLog log(path, identity);
+    for (int i = first; i <= last; ++i) log.Append(EncodeKeyframe(MakeKeyframe(i), i));
+}
+
+std::string RefusalOf(const std::string& path, const std::string& identity) {
+    try {
+        PrepareDurableLog(path, identity, StaleLogPolicy::kRefuse);
+    } catch (const std::runtime_error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(DurableLog, ATornTailIsCutOffSoLaterAppendsAreReadBack) {
+    const std::string path = TempPath("torn_then_append");
+    std::filesystem::remove(path);
+    AppendKeyframes(path, "seed: 1\n", 0, 1);
+    std::ofstream(path, std::ios::binary | std::ios::app).write("\x02\x00", 2);  // crash
+    const DurableLogCheck check = PrepareDurableLog(path, "seed: 1\n", StaleLogPolicy::kRefuse);
+    EXPECT_TRUE(check.truncated_tail);
+    EXPECT_EQ(check.records, 2);
+    AppendKeyframes(path, "seed: 1\n", 2, 3);
+    const DurableLogRead read = ReadDurableLog(path);
+    EXPECT_FALSE(read.torn_tail);
+    ASSERT_EQ(read.messages.size(), 4u);
+    EXPECT_EQ(DecodeKeyframe(read.messages[3])->index, 3);
+    EXPECT_EQ(read.identity, "seed: 1\n");
+    std::filesystem::remove(path);
+}
+
+TEST(DurableLog, AnotherMissionsLogIsRefusedNamingTheDifference) {
+    const std::string path = TempPath("other_mission");
+    std::filesystem::remove(path);
+    AppendKeyframes(path, "robot: 1\nsource.seed: 1\n", 0, 2);
+    const std::string refusal = RefusalOf(path, "robot: 1\nsource.seed: 2\n");
+    EXPECT_NE(refusal.find(path + ": written by another mission: 'source.seed: 1' in the log, "
+                                  "'source.seed: 2' now"),
+              std::string::npos)
+        << refusal;
+    EXPECT_EQ(ReadDurableLog(path).messages.size(), 3u);  // refused, not lost
+    EXPECT_EQ(RefusalOf(path, "robot: 1\nsource.seed: 1\n"), "");
+    std::filesystem::remove(path);
+}
+
+TEST(DurableLog, ALogWithoutHeaderOrWithACorruptRecordIsRefused) {
+    const std::string path = TempPath("corrupt");
+    std::ofstream(path, std::ios::binary) << "keyframes from an older release";
+    EXPECT_NE(RefusalOf(path, "x").find("not a certislam durable log (no header)"),
+              std::string::npos);
+    std::filesystem::remove(path);
+    AppendKeyframes(path, "x", 0, 0);
+    const auto offset = std::filesystem::file_size(path);
+    {
+        std::ofstream out(path, std::ios::binary | std::ios::app);
+        const std::uint32_t frames = 1;
+        const std::uint64_t size = 5;
+        out.write(reinterpret_cast<const char*>(&frames), sizeof(frames));
+        out.write(reinterpret_cast<const char*>(&size), sizeof(size));
+        out.write("junk!", 5);  // a complete record whose frame is no envelope
+    }
+    AppendKeyframes(path, "x", 1, 1);
+    EXPECT_NE(RefusalOf(path, "x").find("1 corrupt record(s), the first at byte " +
+                                        std::to_string(offset)),
+              std::string::npos)
+        << RefusalOf(path, "x");
+    std::filesystem::remove(path);
+}
+
+TEST(DurableLog, AStaleLogIsMovedAsideOnRequestAndANewOneStarts) {
+    const std::string path = TempPath("move_aside");
+    std::filesystem::remove(path);
+    std::filesystem::remove(path + ".stale-1");
+    AppendKeyframes(path, "mission A", 0, 2);
+    const DurableLogCheck check = PrepareDurableLog(path, "mission B", StaleLogPolicy::kMoveAside);
+    EXPECT_EQ(check.moved_to, path + ".stale-1");
+    EXPECT_FALSE(std::filesystem::exists(path));
+    EXPECT_EQ(ReadDurableLog(path + ".stale-1").messages.size(), 3u);  // kept, not deleted
+    AppendKeyframes(path, "mission B", 5, 5);
+    EXPECT_EQ(ReadDurableLog(path).identity, "mission B");
+    EXPECT_EQ(ReadDurableLog(path).messages.size(), 1u);
+    std::filesystem::remove(path);
+    std::filesystem::remove(path + ".stale-1");
 }
 
 /// Runs an ingest actor over `source` with a log and returns the indices a subscriber got.

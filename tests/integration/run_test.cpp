@@ -88,6 +88,31 @@ TEST_F(Run, KaistSplitIntoTwoRobotsRecoversTheOffsetCertified) {
         report.at("seconds").get<double>());
 }
 
+TEST_F(Run, AnotherMissionsDurableLogIsRefusedNotReplayed) {
+    // Same robot ids, another seed: the first mission's logs must not be replayed into the second.
+    const auto mission = [&](int seed, const std::string& extra) {
+        return Write("seed" + std::to_string(seed) + ".yaml",
+                     "robots: [0]\nsource: {kind: simulator, max_keyframes: 8, seed: " +
+                         std::to_string(seed) + "}\nlog_dir: " + (dir_ / "logs").string() + "\n" +
+                         extra);
+    };
+    ASSERT_EQ(RunConfig(mission(1, "")).exit_code, 0);
+    const std::string log = (dir_ / "logs" / "robot0.keyframes.log").string();
+    const auto logged = std::filesystem::file_size(log);
+    const auto refused = RunConfig(mission(2, ""));
+    EXPECT_EQ(refused.exit_code, 1);
+    EXPECT_NE(refused.out.find(log + ": written by another mission: 'source.seed: 1' in the log, "
+                                     "'source.seed: 2' now"),
+              std::string::npos)
+        << refused.out;
+    EXPECT_EQ(std::filesystem::file_size(log), logged);  // refused, and nothing lost
+    const auto moved = RunConfig(mission(2, "log_stale: move_aside\n"));
+    ASSERT_EQ(moved.exit_code, 0) << moved.out;
+    EXPECT_EQ(std::filesystem::file_size(log + ".stale-1"), logged);
+    // The new log is the second mission's: the same mission now replays it and certifies.
+    EXPECT_EQ(RunConfig(mission(2, "")).exit_code, 0);
+}
+
 TEST_F(Run, KeyframeFolderPerRobotIsRead) {
     // Each robot reads its own folder (here the same one, capped): the keyframes arrive, and the
     // folder's poses are the reference of the per-robot evaluation.

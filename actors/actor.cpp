@@ -207,7 +207,7 @@ void Actor::Dispatch(WatchEntry& watch) {
         RunGuarded(watch.on_readable);
         return;
     }
-    for (int i = 0; i < kMaxBatch; ++i) {
+    for (int i = 0; i < kMaxBatch && !StopRequested(); ++i) {
         Frames frames;
         if (!zmq::recv_multipart(*watch.socket, std::back_inserter(frames),
                                  zmq::recv_flags::dontwait)) {
@@ -224,7 +224,7 @@ void Actor::Dispatch(WatchEntry& watch) {
 }
 
 void Actor::DispatchEndpoint(WatchEntry& watch) {
-    for (int i = 0; i < kMaxBatch; ++i) {
+    for (int i = 0; i < kMaxBatch && !StopRequested(); ++i) {
         std::optional<transport::Message> message = watch.endpoint->Receive();
         if (!message) return;
         bool ok = false;
@@ -235,7 +235,8 @@ void Actor::DispatchEndpoint(WatchEntry& watch) {
         if (ok) CountHandled();
     }
     // Batch used up: what is left may sit in the endpoint's queue, which zmq_poll does not see.
-    if (watch.endpoint->queued() > 0) Post([this, w = &watch] { Dispatch(*w); });
+    if (watch.endpoint->queued() > 0 && !StopRequested())
+        Post([this, w = &watch] { Dispatch(*w); });
 }
 
 long Actor::PollTimeoutMs() const {
@@ -303,7 +304,10 @@ void Actor::RunPostedTasks() {
         const std::lock_guard<std::mutex> lock(tasks_mutex_);
         tasks.swap(tasks_);
     }
-    for (const auto& task : tasks) RunGuarded(task);
+    for (const auto& task : tasks) {
+        if (StopRequested()) return;  // a stop drops pending tasks, as Teardown would
+        RunGuarded(task);
+    }
 }
 
 void Actor::Teardown() {

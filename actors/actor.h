@@ -73,10 +73,17 @@ class Actor {
     /// joins. Returns without waiting for queued messages; a no-op when not running.
     void Stop();
 
+    /// Asks the loop to end after the handler that runs now (thread-safe; from the actor's own
+    /// thread too), without joining: a team asks every actor first, then joins each.
+    void RequestStop();
+
     /// Runs `task` on the actor's thread at the next loop iteration (thread-safe; exceptions
     /// are counted as handler errors). A task that posts again runs again only after a poll,
     /// so a chain of posts cannot starve the sockets. Tasks pending at stop are dropped.
     void Post(std::function<void()> task);
+
+    /// True once a stop was asked (thread-safe): long handlers may poll it to end early.
+    bool StopRequested() const { return stop_requested_.load(std::memory_order_acquire); }
 
     /// True between `Start()` and `Stop()`.
     bool Running() const { return thread_.joinable(); }
@@ -123,9 +130,6 @@ class Actor {
     void CountHandled(uint64_t n = 1) { handled_.fetch_add(n, std::memory_order_relaxed); }
     void CountMalformed(uint64_t n = 1) { malformed_.fetch_add(n, std::memory_order_relaxed); }
     void CountQueueFull(uint64_t n = 1) { queue_full_.fetch_add(n, std::memory_order_relaxed); }
-
-    /// Asks the loop to end after the current iteration (callable from the actor's thread).
-    void RequestStop();
 
     /// The ZeroMQ context the actor's sockets live in.
     zmq::context_t& Context() { return context_; }

@@ -218,7 +218,10 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
     const slam::PointCloudPtr kept = peer_clouds_[match] = *cloud;
     const auto waiting = std::move(waiting_[match]);
     waiting_.erase(match);
-    for (const auto& c : waiting) Verify(c, *kept);
+    for (const auto& c : waiting) {
+        if (StopRequested()) break;  // each registration is long: a stop does not wait for all
+        Verify(c, *kept);
+    }
     return true;
 }
 

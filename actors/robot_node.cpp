@@ -40,7 +40,17 @@ void RobotNode::Start() {
     ingest_->Start();
 }
 
+void RobotNode::RequestStop() {
+    ingest_->RequestStop();
+    descriptor_->RequestStop();
+    matcher_->RequestStop();
+    solver_->RequestStop();
+    certifier_->RequestStop();
+    if (mapper_) mapper_->RequestStop();
+}
+
 void RobotNode::Stop() {
+    RequestStop();
     ingest_->Stop();
     descriptor_->Stop();
     matcher_->Stop();

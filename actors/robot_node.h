@@ -42,7 +42,9 @@ class RobotNode {
 
     /// Starts the actors (consumers first, ingest last).
     void Start();
-    /// Stops them (ingest first).
+    /// Asks every actor to stop after its current handler, without waiting (thread-safe).
+    void RequestStop();
+    /// Stops them (asks all first, so their current handlers end together, then joins each).
     void Stop();
 
     /// The solver's state now.

@@ -13,6 +13,7 @@
 #include "bin/command.h"
 #include "bin/config/team_config.h"
 #include "bin/demo/demo_output.h"
+#include "bin/stop_within.h"
 #include "transport/curve.h"
 
 namespace certislam::bin {
@@ -88,8 +89,9 @@ int RunRobot(int argc, char** argv) {
         const auto snapshot = node.Snapshot();
         const auto bytes = node.BytesSentToPeers();
         const auto bytes_by_actor = node.BytesSentToPeersByActor();
-        const nlohmann::json mesh = WriteMesh(node, node_config, id, out_dir);
-        node.Stop();
+        // After the deadline the mapper is not waited for: no mesh then.
+        const nlohmann::json mesh = done ? WriteMesh(node, node_config, id, out_dir) : nullptr;
+        node.RequestStop();
         auto report = nlohmann::json::parse(
             WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds, ""));
         report["bytes_sent_by_actor"] = bytes_by_actor;
@@ -114,7 +116,9 @@ int RunRobot(int argc, char** argv) {
             std::printf("%s%s\n", TeamReportText(text).c_str(),
                         done ? "done: certified" : "not certified before the timeout");
         }
-        return done ? kExitDone : kExitNotCertified;
+        const int code = done ? kExitDone : kExitNotCertified;
+        StopWithin([&] { node.Stop(); }, kStopGrace, code);
+        return code;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "certislam robot: %s\n", e.what());
         return kExitBadInput;

@@ -7,6 +7,7 @@
 
 #include "bin/command.h"
 #include "bin/config/team_config.h"
+#include "bin/stop_within.h"
 
 namespace certislam::bin {
 namespace {
@@ -51,7 +52,7 @@ int RunRun(int argc, char** argv) {
             snapshots.push_back(node->Snapshot());
             bytes += node->BytesSentToPeers();
         }
-        for (auto& node : nodes) node->Stop();
+        for (auto& node : nodes) node->RequestStop();  // all at once: their handlers end together
         const std::string report = WriteTeamOutputs(out_dir, config.robots, snapshots, source,
                                                     bytes, seconds, "report.json");
         if (json) {
@@ -60,7 +61,13 @@ int RunRun(int argc, char** argv) {
             std::printf("%s%s\n", TeamReportText(report).c_str(),
                         done ? "done: certified" : "not certified before the timeout");
         }
-        return done ? kExitDone : kExitNotCertified;
+        const int code = done ? kExitDone : kExitNotCertified;
+        StopWithin(
+            [&] {
+                for (auto& node : nodes) node->Stop();
+            },
+            kStopGrace, code);
+        return code;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "certislam run: %s\n", e.what());
         return kExitBadInput;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -111,6 +112,23 @@ TEST_F(Run, AnotherMissionsDurableLogIsRefusedNotReplayed) {
     EXPECT_EQ(std::filesystem::file_size(log + ".stale-1"), logged);
     // The new log is the second mission's: the same mission now replays it and certifies.
     EXPECT_EQ(RunConfig(mission(2, "")).exit_code, 0);
+}
+
+TEST_F(Run, TimeoutEndsTheProcessWhateverItsActorsAreDoing) {
+    // A dense mission keeps the matcher in registrations and the mapper in TSDF integration far
+    // past the deadline: the command still prints its report and ends soon after --timeout.
+    const std::string config = Write("dense.yaml",
+                                     "robots: [0, 1]\nsource: {kind: simulator, seed: 1, "
+                                     "keyframe_spacing_m: 0.5}\n");
+    const auto begin = std::chrono::steady_clock::now();
+    const auto run = testing::Shell(Binary() + " run " + config + " --json --timeout 3 2>&1");
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+    EXPECT_EQ(run.exit_code, 3) << run.out;
+    ASSERT_NE(run.out.find('{'), std::string::npos) << run.out;
+    const auto report = nlohmann::json::parse(run.out.substr(run.out.find('{')));
+    EXPECT_NE(report.at("verdict").get<std::string>(), "certified");
+    EXPECT_LT(seconds, 3.0 + 2.0);  // 1 s of start-up and teardown, 1 s of slack on a busy CI
 }
 
 TEST_F(Run, KeyframeFolderPerRobotIsRead) {

@@ -138,7 +138,7 @@ bool MapperActor::OnKeyframe(const transport::Message& m) {
     last_keyframe_ = std::chrono::steady_clock::now();
     UpdateStats();
     std::lock_guard lock(stats_mutex_);
-    ++stats_.integrated;
+    if (result.status == slam::TsdfMapInsertResult::Status::kIntegrated) ++stats_.integrated;
     return true;
 }
 
@@ -277,6 +277,7 @@ void MapperActor::UpdateStats() {
     std::lock_guard lock(stats_mutex_);
     stats_.own_submaps = own;
     stats_.peer_submaps = static_cast<int>(peers_.size());
+    stats_.budget = map_.Budget();
 }
 
 slam::TriangleMesh MapperActor::MakeMesh(double voxel_m) const {

@@ -60,6 +60,7 @@ struct MapperStats {
     int submap_sends = 0;                 ///< own submaps sent with their bytes
     int pose_only_sends = 0;              ///< own submaps sent as their anchor pose only
     std::uint64_t submap_bytes_sent = 0;  ///< compressed submap payloads sent to peers
+    slam::TsdfMapBudget budget;           ///< voxel memory, coarsenings and skipped scans
 };
 
 /// One robot's TSDF mapper.

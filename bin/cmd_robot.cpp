@@ -35,7 +35,11 @@ nlohmann::json WriteMesh(actors::RobotNode& node, const actors::RobotNodeConfig&
                        {"peer_submaps", stats.peer_submaps},
                        {"submap_sends", stats.submap_sends},
                        {"pose_only_sends", stats.pose_only_sends},
-                       {"submap_bytes_sent", stats.submap_bytes_sent}};
+                       {"submap_bytes_sent", stats.submap_bytes_sent},
+                       {"voxel_memory_bytes", stats.budget.memory_bytes},
+                       {"coarsenings", stats.budget.coarsenings},
+                       {"voxel_m_now", stats.budget.voxel_size_m},
+                       {"skipped_over_budget", stats.budget.skipped_scans}};
     if (out_dir.empty()) return out;
     std::filesystem::create_directories(out_dir);
     const std::string path = out_dir + "/robot" + std::to_string(id) + ".mesh.ply";

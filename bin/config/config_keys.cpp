@@ -416,6 +416,12 @@ std::vector<ConfigKey> MappingAndNetworkKeys() {
             [](TeamConfig & c, int) -> auto& { return c.node.mapper.map.tsdf.voxel_size_m; },
             {0.05, 5.0}, "TSDF voxel edge"),
         Num<double>(
+            "mapping.memory_budget_mb",
+            [](TeamConfig & c, int) -> auto& { return c.node.mapper.map.memory_budget_mb; },
+            {0.0, 65536.0},
+            "voxel memory of the map at most (0: none); over it new submaps get twice the "
+            "voxel, up to 8x, then keyframes are skipped (counted in the report)"),
+        Num<double>(
             "mapping.submap_distance_m",
             [](TeamConfig & c, int) -> auto& { return c.node.mapper.map.submap_distance_m; },
             positive, "a keyframe this far from the active submap starts a new one"),

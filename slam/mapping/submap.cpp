@@ -18,6 +18,14 @@ void TsdfMapConfig::Validate() const {
         throw std::invalid_argument("TsdfMapConfig.submap_distance_m = " +
                                     std::to_string(submap_distance_m) + ": must be in (0, 1000]");
     }
+    if (!(memory_budget_mb >= 0.0)) {
+        throw std::invalid_argument("TsdfMapConfig.memory_budget_mb = " +
+                                    std::to_string(memory_budget_mb) + ": must be >= 0");
+    }
+    if (max_coarsening < 0 || max_coarsening > 6) {
+        throw std::invalid_argument("TsdfMapConfig.max_coarsening = " +
+                                    std::to_string(max_coarsening) + ": must be in [0, 6]");
+    }
     if (submap_max_keyframes < 0) {
         throw std::invalid_argument("TsdfMapConfig.submap_max_keyframes = " +
                                     std::to_string(submap_max_keyframes) + ": must be >= 0");
@@ -26,11 +34,38 @@ void TsdfMapConfig::Validate() const {
 
 TsdfMap::TsdfMap(int robot, const TsdfMapConfig& config) : robot_(robot), config_(config) {
     config_.Validate();
+    budget_.voxel_size_m = config_.tsdf.voxel_size_m;
+}
+
+TsdfMapBudget TsdfMap::Budget() const {
+    TsdfMapBudget budget = budget_;
+    for (const std::size_t bytes : memory_) budget.memory_bytes += bytes;
+    return budget;
+}
+
+bool TsdfMap::OverBudget() {
+    const double budget_bytes = config_.memory_budget_mb * 1024.0 * 1024.0;
+    if (budget_bytes <= 0.0 || static_cast<double>(Budget().memory_bytes) <= budget_bytes) {
+        return false;
+    }
+    if (budget_.coarsenings >= config_.max_coarsening) {
+        ++budget_.skipped_scans;
+        return true;
+    }
+    // Eight times fewer voxels per volume for each doubling; existing submaps are kept as they are.
+    ++budget_.coarsenings;
+    budget_.voxel_size_m *= 2.0;
+    active_.reset();
+    return false;
 }
 
 TsdfMapInsertResult TsdfMap::Insert(int keyframe, const Eigen::Isometry3d& T_world_sensor,
                                     const PointCloud& cloud) {
     TsdfMapInsertResult result;
+    if (OverBudget()) {
+        result.status = TsdfMapInsertResult::Status::kOverBudget;
+        return result;
+    }
     bool start = !active_.has_value();
     if (!start) {
         const Submap& a = submaps_[*active_];
@@ -41,7 +76,9 @@ TsdfMapInsertResult TsdfMap::Insert(int keyframe, const Eigen::Isometry3d& T_wor
     }
     if (start) {
         // Integrate into a fresh volume first, so a scan with no valid rays starts nothing.
-        TsdfVolume volume(config_.tsdf);
+        TsdfConfig tsdf = config_.tsdf;
+        tsdf.voxel_size_m = budget_.voxel_size_m;
+        TsdfVolume volume(tsdf);
         result.integrate = volume.Integrate(cloud, Eigen::Isometry3d::Identity());
         if (result.integrate.status != TsdfIntegrateResult::Status::kOk) {
             result.status = TsdfMapInsertResult::Status::kNoValidRays;
@@ -57,6 +94,7 @@ TsdfMapInsertResult TsdfMap::Insert(int keyframe, const Eigen::Isometry3d& T_wor
                                   {keyframe},
                                   std::move(volume)});
         mesh_.emplace_back();
+        memory_.push_back(submaps_.back().volume.Stats().memory_bytes);
         active_ = submaps_.size() - 1;
         result.started_submap = true;
         result.submap = *active_;
@@ -73,6 +111,7 @@ TsdfMapInsertResult TsdfMap::Insert(int keyframe, const Eigen::Isometry3d& T_wor
     }
     a.keyframes.push_back(keyframe);
     mesh_[*active_].reset();
+    memory_[*active_] = a.volume.Stats().memory_bytes;
     return result;
 }
 
@@ -93,12 +132,14 @@ void TsdfMap::AddSubmap(Submap submap) {
         if (submaps_[i].id == submap.id) {
             submaps_[i] = std::move(submap);
             mesh_[i].reset();
+            memory_[i] = submaps_[i].volume.Stats().memory_bytes;
             if (active_ == i) active_.reset();
             return;
         }
     }
     submaps_.push_back(std::move(submap));
     mesh_.emplace_back();
+    memory_.push_back(submaps_.back().volume.Stats().memory_bytes);
 }
 
 TriangleMesh TsdfMap::ExtractMesh() {

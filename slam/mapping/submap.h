@@ -45,6 +45,9 @@ struct TsdfMapConfig {
                                       ///< anchor starts a new submap, metres, in (0, 1000]
     int submap_max_keyframes = 0;     ///< a submap holding this many keyframes is closed, >= 0
                                       ///< (0: no limit)
+    double memory_budget_mb = 64.0;   ///< voxel memory of all submaps at most, MiB (0: none); over
+                                      ///< it, new submaps are coarser, then scans are skipped
+    int max_coarsening = 3;           ///< voxels grow at most 2^this times over budget, in [0, 6]
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -55,11 +58,20 @@ struct TsdfMapInsertResult {
     enum class Status {
         kIntegrated,   ///< the scan was fused into submap `submap`
         kNoValidRays,  ///< every point was out of range: nothing changed (no submap started)
+        kOverBudget,   ///< the map is over its memory budget at the coarsest voxel: skipped
     };
     Status status = Status::kIntegrated;  ///< how the call ended
     bool started_submap = false;          ///< this keyframe anchors a new submap
     std::size_t submap = 0;               ///< index in submaps() of the submap it went into
     TsdfIntegrateResult integrate;        ///< the volume update
+};
+
+/// How a TsdfMap kept within its memory budget.
+struct TsdfMapBudget {
+    std::size_t memory_bytes = 0;  ///< voxel memory of every submap now (OpenVDB's memUsage)
+    int coarsenings = 0;           ///< times the voxel of new submaps was doubled
+    double voxel_size_m = 0.0;     ///< voxel of the next own submap
+    int skipped_scans = 0;         ///< keyframes not integrated: over budget at the coarsest voxel
 };
 
 /// A robot's map as submaps, plus submaps received from peers. Keyframe poses are given in
@@ -99,9 +111,18 @@ class TsdfMap {
     /// The robot this map belongs to.
     int robot() const { return robot_; }
 
+    /// Memory now and what keeping within the budget cost.
+    TsdfMapBudget Budget() const;
+
   private:
+    /// Over budget before an insert: doubles the voxel of new submaps (closing the active one)
+    /// while it may; true when the scan must be skipped (still over at the coarsest voxel).
+    bool OverBudget();
+
     int robot_;
     TsdfMapConfig config_;
+    std::vector<std::size_t> memory_;  // per submap, its volume's memUsage when last changed
+    TsdfMapBudget budget_;
     std::vector<Submap> submaps_;
     std::optional<std::size_t> active_;              // index of the submap Insert writes into
     std::vector<std::optional<TriangleMesh>> mesh_;  // per submap, in its frame; nullopt: stale

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <stdexcept>
 
@@ -182,6 +183,52 @@ TEST(TsdfMap, FusesTwoRobotsSubmapsIntoOneFrame) {
     EXPECT_LT(worst, cfg.voxel_size_m);
     EXPECT_GT(near_minus_x, 20);  // seen by robot 0 only
     EXPECT_GT(near_plus_x, 20);   // seen by robot 1 only
+}
+
+TEST(TsdfMap, KeepsWithinItsMemoryBudgetByCoarseningThenSkipping) {
+    const std::vector<Box> scene = testing::GroundAndCube(kGround);
+    TsdfMapConfig free_config;
+    free_config.memory_budget_mb = 0.0;    // no budget
+    free_config.submap_max_keyframes = 1;  // every scan its own volume: memory grows per scan
+    free_config.tsdf.voxel_size_m = 0.1;
+    const auto poses = Drive();
+    TsdfMap free(0, free_config);
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+        free.Insert(static_cast<int>(i), poses[i], ScanBoxes(scene, poses[i]));
+    }
+    std::size_t one_scan = 0;  // the largest one-scan volume
+    for (const Submap& s : free.submaps()) {
+        one_scan = std::max(one_scan, s.volume.Stats().memory_bytes);
+    }
+    EXPECT_EQ(free.Budget().coarsenings, 0);
+
+    TsdfMapConfig bounded = free_config;
+    bounded.memory_budget_mb = 2.5 * static_cast<double>(one_scan) / (1024.0 * 1024.0);
+    bounded.max_coarsening = 1;
+    TsdfMap map(0, bounded);
+    std::vector<TsdfMapInsertResult::Status> status;
+    for (int round = 0; round < 2; ++round) {
+        for (std::size_t i = 0; i < poses.size(); ++i) {
+            const int index = round * static_cast<int>(poses.size()) + static_cast<int>(i);
+            status.push_back(map.Insert(index, poses[i], ScanBoxes(scene, poses[i])).status);
+        }
+    }
+    const TsdfMapBudget budget = map.Budget();
+    EXPECT_EQ(budget.coarsenings, 1);
+    EXPECT_DOUBLE_EQ(budget.voxel_size_m, 0.2);
+    EXPECT_GT(budget.skipped_scans, 0);
+    EXPECT_EQ(std::count(status.begin(), status.end(), TsdfMapInsertResult::Status::kOverBudget),
+              budget.skipped_scans);
+    // Checked before each insert: at most one scan's volume over the budget, not 16 scans' worth.
+    EXPECT_LE(static_cast<double>(budget.memory_bytes),
+              bounded.memory_budget_mb * 1024.0 * 1024.0 + static_cast<double>(one_scan));
+    EXPECT_LT(budget.memory_bytes, free.Budget().memory_bytes * 2);  // free: 16 scans ~ 2x this
+    // The coarser submaps still hold the scene: their voxel is the doubled one.
+    EXPECT_DOUBLE_EQ(map.submaps().back().volume.config().voxel_size_m, 0.2);
+
+    TsdfMapConfig bad;
+    bad.memory_budget_mb = -1.0;
+    EXPECT_THROW(TsdfMap(0, bad), std::invalid_argument);
 }
 
 }  // namespace

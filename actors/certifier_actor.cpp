@@ -7,6 +7,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "certify/distributed/round_certificate.h"
 #include "certify/saddle_escape.h"
 #include "slam/backend/connection_laplacian.h"
 #include "slam/core/loop_closure.h"
@@ -71,6 +72,9 @@ void CertifierActor::NoteVerdict(bool certified, const std::map<int, Bundle>& bu
 
 CertifierActor::CertifierActor(zmq::context_t& context, TeamWiring wiring, CertifierConfig config)
     : NodeActor("certifier", context, std::move(wiring)), config_(config) {
+    // One first-order rule: a round stops before Lanczos exactly where the certificate would.
+    config_.lanczos.eta_relative = config_.certificate.eta_relative;
+    config_.lanczos.gradient_tolerance_relative = config_.certificate.gradient_tolerance_relative;
     config_.Validate();
 }
 
@@ -241,6 +245,11 @@ void CertifierActor::Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::M
 std::optional<certify::DistributedVerdict> CertifierActor::LastVerdict() const {
     std::lock_guard lock(verdict_mutex_);
     return verdict_;
+}
+
+std::optional<certify::CertificateResult> CertifierActor::LastCertificate() const {
+    std::lock_guard lock(verdict_mutex_);
+    return certificate_;
 }
 
 void CertifierActor::SubscribeRounds() {
@@ -419,43 +428,46 @@ void CertifierActor::RoundFinished() {
         std::lock_guard lock(verdict_mutex_);
         if (verdict_ && verdict_->round == verdict.round) return;  // already counted
     }
+    // The anchor decides: the round's sums and lambda_min by the central rule, with the PSD test
+    // of S + e D of the round's graph (the bundles the round named: one X, one edge set).
     slam::PoseGraph graph;
     Eigen::MatrixXd X;
-    const bool assembled = anchor_ &&
-                           (config_.cross_check ||
-                            verdict.status == certify::DistributedVerdict::Status::kNotCertified) &&
-                           Assemble(round_bundles_, &graph, &X);
+    const bool assembled = anchor_ && Assemble(round_bundles_, &graph, &X);
+    std::optional<certify::CertificateResult> decided;
+    Eigen::SparseMatrix<double> Q;
+    if (assembled) {
+        Q = slam::ConnectionLaplacian(graph);
+        decided = certify::DecideRound(verdict, config_.certificate, certify::RoundPsdTest(Q, X));
+    }
     std::optional<certify::CertificateResult> central;
     if (assembled && config_.cross_check) {
-        central = certify::Certify(slam::ConnectionLaplacian(graph), X, 3, config_.certificate);
+        central = certify::Certify(Q, X, 3, config_.certificate);
         verdict.central_lambda_min = central->lambda_min;
     }
     {
         std::lock_guard lock(verdict_mutex_);
         verdict_ = verdict;
+        if (decided) certificate_ = decided;
     }
     ++rounds_;
     ++checks_;
     lanczos_steps_ += static_cast<std::uint64_t>(verdict.steps);
     if (!anchor_) return;
-    NoteVerdict(verdict.status == certify::DistributedVerdict::Status::kCertified, round_bundles_);
-    v1::CertificateReport report;
+    if (!decided) {  // the round's bundles no longer assemble: no verdict; the next round will
+        dirty_ = true;
+        return;
+    }
+    NoteVerdict(decided->status == certify::CertificateResult::Status::kCertified, round_bundles_);
+    auto report = ToProto(*decided, round_rank_);
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-    report.set_verdict(VerdictOf(verdict.status));
-    report.set_lambda_min(verdict.lambda_min);
-    report.set_eps_tolerance(verdict.eta);
-    report.set_duality_gap(verdict.cost - verdict.dual_value);
-    report.set_objective(verdict.cost);
-    report.set_rank_r(round_rank_);
     report.set_iteration(round_edges_);  // which graph: its edge count
     report.set_path(v1::CERTIFICATE_PATH_DISTRIBUTED);
     Send(*out_, transport::Pack(report), true);
-    if (verdict.status != certify::DistributedVerdict::Status::kNotCertified ||
-        level_ >= config_.max_staircase_steps || !assembled) {
+    if (decided->status != certify::CertificateResult::Status::kNotOptimal ||
+        level_ >= config_.max_staircase_steps) {
         return;
     }
     // The escape stays centralised: the anchor computes the eigenvector on the round's graph.
-    const auto Q = slam::ConnectionLaplacian(graph);
     if (!central) central = certify::Certify(Q, X, 3, config_.certificate);
     if (central->status == certify::CertificateResult::Status::kNotOptimal) {
         Escape(Q, X, central->eigenvector, central->gradient_tolerance, round_bundles_);

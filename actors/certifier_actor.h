@@ -1,7 +1,9 @@
 // Certifier actor. Distributed mode (default): when the team anchor (lowest robot id) has every
 // robot's converged bundle it opens a round naming them; every robot's certifier builds its own
 // rows of S and the certifiers run Lanczos together, exchanging only the entries of v at public
-// poses and partial sums, so every robot reaches lambda_min and the verdict itself. Centralised
+// poses and partial sums, so every robot reaches lambda_min and the team's sums (cost, tr(Lambda),
+// gradient) of one X on one graph; the anchor decides by the central rule (certify::DecideRound:
+// the PSD test of S + e D of the round's graph proves the bound). Centralised
 // mode: the anchor assembles the joint Q and X and checks alone. Either way the anchor reports the
 // verdict to every robot's solver and, at a saddle, sends each robot its block at rank r+1
 // (Riemannian staircase, computed centrally at the anchor).
@@ -76,6 +78,9 @@ class CertifierActor final : public NodeActor {
     int SettledSkips() const { return skipped_.load(); }
     /// The verdict of the last distributed round this robot finished (thread-safe).
     std::optional<certify::DistributedVerdict> LastVerdict() const;
+    /// Anchor: the certificate of the last distributed round it finished, decided by the central
+    /// rule (certify::DecideRound) on the round's graph (thread-safe).
+    std::optional<certify::CertificateResult> LastCertificate() const;
 
   protected:
     void OnStart() override;
@@ -135,6 +140,7 @@ class CertifierActor final : public NodeActor {
     std::atomic<std::uint64_t> bundle_bytes_{0};
     mutable std::mutex verdict_mutex_;
     std::optional<certify::DistributedVerdict> verdict_;
+    std::optional<certify::CertificateResult> certificate_;  ///< anchor: decided from verdict_
     bool dirty_ = false;
     /// anchor: the bundles of the last verdict when it was certified (empty otherwise)
     std::map<int, Bundle> certified_bundles_;

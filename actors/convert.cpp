@@ -334,6 +334,7 @@ v1::CertificateVerdict VerdictOf(certify::CertificateResult::Status status) {
         case S::kNotOptimal:
             return v1::CERTIFICATE_VERDICT_NOT_CERTIFIED;
         case S::kNotCritical:
+            return v1::CERTIFICATE_VERDICT_NOT_CRITICAL;
         case S::kInconclusive:
             return v1::CERTIFICATE_VERDICT_INCONCLUSIVE;
     }
@@ -349,6 +350,13 @@ v1::CertificateReport ToProto(const certify::CertificateResult& result, std::uin
     out.set_duality_gap(result.duality_gap);
     out.set_objective(result.objective);
     out.set_rank_r(rank);
+    out.set_has_bound(result.has_bound);
+    out.set_lower_bound(result.lower_bound);
+    out.set_relative_suboptimality_bound(result.relative_suboptimality_bound);
+    out.set_dual_value(result.dual_value);
+    out.set_gradient_norm(result.gradient_norm);
+    out.set_gradient_tolerance(result.gradient_tolerance);
+    out.set_reason(result.reason);
     return out;
 }
 
@@ -395,14 +403,19 @@ std::optional<std::map<slam::PoseId, Eigen::Isometry3d>> TrajectoryFromProto(
     return out;
 }
 
-v1::CertificateVerdict VerdictOf(certify::DistributedVerdict::Status status) {
-    switch (status) {
-        case certify::DistributedVerdict::Status::kCertified:
-            return v1::CERTIFICATE_VERDICT_CERTIFIED;
-        case certify::DistributedVerdict::Status::kNotCertified:
-            return v1::CERTIFICATE_VERDICT_NOT_CERTIFIED;
+std::string VerdictName(v1::CertificateVerdict verdict) {
+    using S = certify::CertificateResult::Status;
+    switch (verdict) {
+        case v1::CERTIFICATE_VERDICT_CERTIFIED:
+            return certify::VerdictName(S::kCertified);
+        case v1::CERTIFICATE_VERDICT_NOT_CERTIFIED:
+            return certify::VerdictName(S::kNotOptimal);
+        case v1::CERTIFICATE_VERDICT_NOT_CRITICAL:
+            return certify::VerdictName(S::kNotCritical);
+        case v1::CERTIFICATE_VERDICT_INCONCLUSIVE:
+            return certify::VerdictName(S::kInconclusive);
         default:
-            return v1::CERTIFICATE_VERDICT_INCONCLUSIVE;
+            return "none";
     }
 }
 

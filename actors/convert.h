@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -104,7 +105,8 @@ std::optional<std::map<slam::PoseId, Eigen::Isometry3d>> TrajectoryFromProto(
 v1::CertificateReport ToProto(const certify::CertificateResult& result, std::uint32_t rank);
 /// The verdict a certificate status maps to.
 v1::CertificateVerdict VerdictOf(certify::CertificateResult::Status status);
-/// The verdict a distributed round's status maps to.
-v1::CertificateVerdict VerdictOf(certify::DistributedVerdict::Status status);
+/// The one spelling of a report's verdict: certify::VerdictName of the status it came from
+/// ("certified", "not optimal", "not critical", "inconclusive"), or "none" (no certificate).
+std::string VerdictName(v1::CertificateVerdict verdict);
 
 }  // namespace certislam::actors

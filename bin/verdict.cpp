@@ -1,20 +1,11 @@
 // Lower-case names of the certificate's verdicts and paths (see verdict.h).
 #include "bin/verdict.h"
 
+#include "actors/convert.h"
+
 namespace certislam::bin {
 
-std::string VerdictName(v1::CertificateVerdict verdict) {
-    switch (verdict) {
-        case v1::CERTIFICATE_VERDICT_CERTIFIED:
-            return "certified";
-        case v1::CERTIFICATE_VERDICT_NOT_CERTIFIED:
-            return "not optimal";
-        case v1::CERTIFICATE_VERDICT_INCONCLUSIVE:
-            return "inconclusive";
-        default:
-            return "none";
-    }
-}
+std::string VerdictName(v1::CertificateVerdict verdict) { return actors::VerdictName(verdict); }
 
 std::string CertificatePathName(v1::CertificatePath path) {
     switch (path) {

@@ -8,7 +8,8 @@
 
 namespace certislam::bin {
 
-/// "certified", "not optimal", "inconclusive" or "none" (no certificate yet).
+/// "certified", "not optimal", "not critical", "inconclusive" (certify::VerdictName, through
+/// actors::VerdictName) or "none" (no certificate yet).
 std::string VerdictName(v1::CertificateVerdict verdict);
 
 /// "centralised", "distributed", "fallback" or "none".

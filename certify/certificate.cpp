@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -120,54 +122,40 @@ int Refinements(const CertificateConfig& config, int d, int n, const Certificate
     return std::clamp(needed, config.bound_refinements, kMaxRefinements);
 }
 
-/// The second-order part at a critical X: Cholesky verdict, eigenpair, bound or escape.
-/// Returns why it is inconclusive, or empty (then has_bound: PSD; else: not optimal).
-std::string SecondOrder(const SparseMatrix& Q, const SparseMatrix& S, const Eigen::MatrixXd& X,
-                        int d, const CertificateConfig& config, CertificateResult* result) {
-    const int n = static_cast<int>(X.cols()) / (d + 1);
-    PsdTest psd(S, d);
+/// The eigenpair of S at a critical X (nullopt when the eigensolver failed).
+std::optional<MinEigenpairResult> Eigenpair(const SparseMatrix& S, double eta,
+                                            const CertificateConfig& config,
+                                            CertificateResult* result) {
     MinEigenpairConfig eig;
-    eig.initial_shift = result->eta;
+    eig.initial_shift = eta;
     eig.tolerance = config.eigen_tolerance;
     eig.max_iterations = config.eigen_max_iterations;
     eig.subspace = config.eigen_subspace;
     eig.seed = config.seed;
-    const MinEigenpairResult pair = SmallestEigenpair(S, eig);
+    MinEigenpairResult pair = SmallestEigenpair(S, eig);
     result->eigen_iterations = pair.iterations;
     result->shift_attempts = pair.shift_attempts;
-    if (pair.status != MinEigenpairResult::Status::kConverged) {
-        // A factorization at eta proves PSD by itself; a failed one, without an eigenvector,
-        // neither refutes optimality nor gives a direction.
-        result->psd_at_eta = psd.PsdAt(result->eta);
-        if (!result->psd_at_eta) return "S + eta D did not factorize and the eigensolver failed";
-        SetBound(result->eta, d, n, result);
-        return {};
-    }
-    result->lambda_min = pair.lambda;
-    result->lambda_min_relative = result->q_norm > 0.0 ? pair.lambda / result->q_norm : 0.0;
+    if (pair.status != MinEigenpairResult::Status::kConverged) return std::nullopt;
     result->eigen_residual = pair.residual;
     result->eigenvector = pair.vector;
-    const BoundSearch search =
-        VerdictAndBound(result->eta, pair.lambda, Refinements(config, d, n, *result),
-                        [&](double eta) { return psd.PsdAt(eta); });
-    result->psd_at_eta = search.psd_at_eta;
-    if (search.psd_at_eta) {
-        SetBound(search.bound_eta, d, n, result);
-        return {};
+    return pair;
+}
+
+/// Sets the relative bound and the verdict of a proven bound.
+void FinishBound(const CertificateQuantities& q, const CertificateConfig& config,
+                 CertificateResult* result) {
+    // Relative to f(X) floored at its own rounding noise (f* = 0 graphs).
+    const double noise = kRoundingNoise * result->q_norm * q.x_norm;
+    const double scale = std::max(result->objective, noise * q.x_norm);
+    result->relative_suboptimality_bound = result->suboptimality_bound / scale;
+    if (result->relative_suboptimality_bound > config.max_relative_bound) {
+        result->status = CertificateResult::Status::kInconclusive;
+        result->reason = "S + eta D is PSD but the proven relative suboptimality bound " +
+                         std::to_string(result->relative_suboptimality_bound) + " exceeds " +
+                         std::to_string(config.max_relative_bound);
+        return;
     }
-    // S + eta D not PSD proves x^T S x < -eta x^T D x for some x (D >= 0: S is not PSD either);
-    // the eigenvector, v^T S v < 0, is the direction to escape along. lambda_min itself may lie
-    // in (-eta, 0) when v has translation entries, which D does not weigh.
-    if (!(pair.lambda < 0.0)) {
-        return "S + eta D did not factorize, yet lambda_min = " + std::to_string(pair.lambda) +
-               " >= 0";
-    }
-    const EscapeResult escape = EscapeSaddle(Q, X, d, pair.vector, result->gradient_tolerance);
-    if (escape.status == EscapeResult::Status::kEscaped) {
-        result->escape_descent = escape.cost_before - escape.cost_after;
-        result->escape_step = escape.step;
-    }
-    return {};
+    result->status = CertificateResult::Status::kCertified;
 }
 
 }  // namespace
@@ -291,6 +279,74 @@ CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d
     return CertifyWithMultipliers(Q, X, d, LambdaBlocks(Q, X, d), config);
 }
 
+PsdTestFunction MakePsdTest(const SparseMatrix& S, int d) {
+    auto test = std::make_shared<PsdTest>(S, d);
+    return [test](double e) { return test->PsdAt(e); };
+}
+
+bool FirstOrderVerdict(const CertificateQuantities& q, const CertificateConfig& config,
+                       CertificateResult* result) {
+    result->objective = q.objective;
+    result->dual_value = q.dual_value;
+    result->duality_gap = q.objective - q.dual_value;
+    result->q_norm = q.q_norm;
+    result->eta = config.eta_relative * q.q_norm;
+    // Riemannian gradient = 2 X S when Lambda = Lambda(X); else the Lagrangian's gradient.
+    result->gradient_norm = q.gradient_norm;
+    // The second term is the rounding noise of X Q (it matters only where f(X) = 0).
+    const double noise = kRoundingNoise * q.q_norm * q.x_norm;
+    result->gradient_tolerance = config.gradient_tolerance_relative * 2.0 *
+                                     std::sqrt(q.q_norm * std::max(q.objective, 0.0)) +
+                                 noise;
+    if (result->gradient_norm > result->gradient_tolerance) {
+        result->status = CertificateResult::Status::kNotCritical;
+        return false;
+    }
+    return true;
+}
+
+void SecondOrderVerdict(const CertificateQuantities& q, std::optional<double> lambda_min,
+                        const CertificateConfig& config, const PsdTestFunction& psd_at,
+                        CertificateResult* result) {
+    if (!(result->eta > 0.0)) {  // Q = 0 (or sums from a peer that are not numbers)
+        result->status = CertificateResult::Status::kInconclusive;
+        result->reason = "||Q|| = " + std::to_string(result->q_norm) + ": no scale to test at";
+        return;
+    }
+    if (!lambda_min) {
+        // A factorization at eta proves PSD by itself; a failed one, without an eigenvector,
+        // neither refutes optimality nor gives a direction.
+        result->psd_at_eta = psd_at(result->eta);
+        if (!result->psd_at_eta) {
+            result->status = CertificateResult::Status::kInconclusive;
+            result->reason = "S + eta D did not factorize and the eigensolver failed";
+            return;
+        }
+        SetBound(result->eta, q.d, q.n, result);
+        return FinishBound(q, config, result);
+    }
+    result->lambda_min = *lambda_min;
+    result->lambda_min_relative = result->q_norm > 0.0 ? *lambda_min / result->q_norm : 0.0;
+    const BoundSearch search =
+        VerdictAndBound(result->eta, *lambda_min, Refinements(config, q.d, q.n, *result), psd_at);
+    result->psd_at_eta = search.psd_at_eta;
+    if (search.psd_at_eta) {
+        SetBound(search.bound_eta, q.d, q.n, result);
+        return FinishBound(q, config, result);
+    }
+    // S + eta D not PSD proves x^T S x < -eta x^T D x for some x (D >= 0: S is not PSD either);
+    // the eigenvector, v^T S v < 0, is the direction to escape along. lambda_min itself may lie
+    // in (-eta, 0) when v has translation entries, which D does not weigh.
+    if (!(*lambda_min < 0.0)) {
+        result->status = CertificateResult::Status::kInconclusive;
+        result->reason =
+            "S + eta D did not factorize, yet lambda_min = " + std::to_string(*lambda_min) +
+            " >= 0";
+        return;
+    }
+    result->status = CertificateResult::Status::kNotOptimal;
+}
+
 CertificateResult CertifyWithMultipliers(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d,
                                          const std::vector<Eigen::MatrixXd>& lambda,
                                          const CertificateConfig& config) {
@@ -301,47 +357,38 @@ CertificateResult CertifyWithMultipliers(const SparseMatrix& Q, const Eigen::Mat
     CERTISLAM_CHECK(static_cast<int>(lambda.size()) == n);
     CertificateResult result;
     const SparseMatrix S = CertificateMatrix(Q, lambda, d);
-    const Eigen::MatrixXd XS = X * S;
-    result.objective = (X * Q).cwiseProduct(X).sum();
-    for (const auto& block : lambda) result.dual_value += block.trace();
-    result.duality_gap = result.objective - result.dual_value;
-    result.q_norm = NormUpperBound(Q);
-    result.eta = config.eta_relative * result.q_norm;
-    // Riemannian gradient = 2 X S when Lambda = Lambda(X); else the Lagrangian's gradient.
-    result.gradient_norm = 2.0 * XS.norm();
-    // The second term is the rounding noise of X Q (it matters only where f(X) = 0).
-    const double noise = kRoundingNoise * result.q_norm * X.norm();
-    result.gradient_tolerance = config.gradient_tolerance_relative * 2.0 *
-                                    std::sqrt(result.q_norm * std::max(result.objective, 0.0)) +
-                                noise;
-    const auto finish = [&](CertificateResult::Status status, const std::string& reason = {}) {
-        result.status = status;
-        result.reason = reason;
+    CertificateQuantities q;
+    q.d = d;
+    q.n = n;
+    q.objective = (X * Q).cwiseProduct(X).sum();
+    for (const auto& block : lambda) q.dual_value += block.trace();
+    q.q_norm = NormUpperBound(Q);
+    q.gradient_norm = 2.0 * (X * S).norm();
+    q.x_norm = X.norm();
+    const auto finish = [&] {
         result.seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         return result;
     };
+    const bool critical = FirstOrderVerdict(q, config, &result);
     const std::string off_manifold = OffManifold(X, d);
-    if (!off_manifold.empty())
-        return finish(CertificateResult::Status::kInconclusive, off_manifold);
-    if (result.gradient_norm > result.gradient_tolerance) {
-        return finish(CertificateResult::Status::kNotCritical);
+    if (!off_manifold.empty()) {
+        result.status = CertificateResult::Status::kInconclusive;
+        result.reason = off_manifold;
+        return finish();
     }
-    const std::string why = SecondOrder(Q, S, X, d, config, &result);
-    if (result.has_bound && why.empty()) {
-        // Relative to f(X) floored at its own rounding noise (f* = 0 graphs).
-        const double scale = std::max(result.objective, noise * X.norm());
-        result.relative_suboptimality_bound = result.suboptimality_bound / scale;
-        if (result.relative_suboptimality_bound > config.max_relative_bound) {
-            return finish(CertificateResult::Status::kInconclusive,
-                          "S + eta D is PSD but the proven relative suboptimality bound " +
-                              std::to_string(result.relative_suboptimality_bound) + " exceeds " +
-                              std::to_string(config.max_relative_bound));
+    if (!critical) return finish();
+    const auto pair = Eigenpair(S, result.eta, config, &result);
+    SecondOrderVerdict(q, pair ? std::optional<double>(pair->lambda) : std::nullopt, config,
+                       MakePsdTest(S, d), &result);
+    if (result.status == CertificateResult::Status::kNotOptimal) {
+        const EscapeResult escape = EscapeSaddle(Q, X, d, pair->vector, result.gradient_tolerance);
+        if (escape.status == EscapeResult::Status::kEscaped) {
+            result.escape_descent = escape.cost_before - escape.cost_after;
+            result.escape_step = escape.step;
         }
-        return finish(CertificateResult::Status::kCertified);
     }
-    if (why.empty()) return finish(CertificateResult::Status::kNotOptimal);
-    return finish(CertificateResult::Status::kInconclusive, why);
+    return finish();
 }
 
 }  // namespace certislam::certify

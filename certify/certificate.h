@@ -6,6 +6,7 @@
 #include <Eigen/SparseCore>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -126,6 +127,38 @@ struct BoundSearch {
 /// 1 + bound_refinements tests). bound_refinements 0: one test at eta.
 BoundSearch VerdictAndBound(double eta, double lambda_min, int bound_refinements,
                             const std::function<bool(double)>& psd_at);
+
+/// The first-order quantities of a certificate, however they were computed (one process, or
+/// sums over robots): every one from the same X on the same graph.
+struct CertificateQuantities {
+    int d = 3;                   ///< dimension
+    int n = 0;                   ///< poses
+    double objective = 0.0;      ///< f(X) = tr(X Q X^T)
+    double dual_value = 0.0;     ///< tr(Lambda)
+    double q_norm = 0.0;         ///< upper bound of ||Q||_2 (NormUpperBound)
+    double gradient_norm = 0.0;  ///< ||2 X S||_F
+    double x_norm = 0.0;         ///< ||X||_F (scale of the rounding noise of X Q)
+};
+
+/// A PSD test of S + e D for the S of one X and one graph (monotone in e).
+using PsdTestFunction = std::function<bool(double e)>;
+
+/// The Cholesky test of S + e D (gauge-fixed, CHOLMOD; the symbolic analysis is done once).
+PsdTestFunction MakePsdTest(const Eigen::SparseMatrix<double>& S, int d);
+
+/// First-order part of the one verdict: fills objective, dual value, duality gap, q_norm, eta,
+/// gradient norm and its tolerance; true when X is critical (gradient within tolerance). Not
+/// critical: status kNotCritical, no bound.
+bool FirstOrderVerdict(const CertificateQuantities& q, const CertificateConfig& config,
+                       CertificateResult* result);
+
+/// Second-order part of the one verdict at a critical X: from lambda_min (nullopt: the
+/// eigensolver failed) and psd_at on the same S, sets status, reason, psd_at_eta and, when S +
+/// eta D was shown PSD, the bound (VerdictAndBound); certified needs the relative bound within
+/// config.max_relative_bound. Computes no escape (the caller holds Q and X).
+void SecondOrderVerdict(const CertificateQuantities& q, std::optional<double> lambda_min,
+                        const CertificateConfig& config, const PsdTestFunction& psd_at,
+                        CertificateResult* result);
 
 /// Certifies X (r x (d+1)n, blocks [Y_i p_i], Y_i on the Stiefel manifold) for f = tr(X Q X^T),
 /// with Lambda recomputed from X (LambdaBlocks): never a solver's multipliers (MATH.md).

@@ -106,6 +106,12 @@ team = {
     "reports": len(reports),
     "certified": len(reports) == n and all(r.get("certified") for r in reports),
     "verdict": verdicts[0] if len(verdicts) == 1 and len(reports) == n else "inconclusive",
+    # The anchor's certificate (every robot reports the one the anchor sent): objective, and the
+    # bound only when it was proven (null otherwise).
+    "objective": reports[0].get("objective") if reports else None,
+    "lower_bound": reports[0].get("lower_bound") if reports else None,
+    "relative_suboptimality_bound":
+        reports[0].get("relative_suboptimality_bound") if reports else None,
     "bytes_sent": sum(r.get("bytes_sent", 0) for r in reports),
     "seconds": max((r.get("seconds", 0.0) for r in reports), default=0.0),
 }

@@ -185,7 +185,16 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
     report["certified"] = report_of && report_of->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
     report["lambda_min"] = report_of ? report_of->lambda_min() : 0.0;
     report["verdict"] = report_of ? VerdictName(report_of->verdict()) : "none";
-    if (report_of) report["duality_gap"] = report_of->duality_gap();
+    if (report_of) {
+        report["objective"] = report_of->objective();
+        report["duality_gap"] = report_of->duality_gap();
+    }
+    // Only a proven bound (S + eta D PSD on the certificate's graph): null otherwise.
+    const bool proven = report_of && report_of->has_bound();
+    report["lower_bound"] = proven ? json(report_of->lower_bound()) : json(nullptr);
+    report["relative_suboptimality_bound"] =
+        proven ? json(report_of->relative_suboptimality_bound()) : json(nullptr);
+    if (report_of && !report_of->reason().empty()) report["reason"] = report_of->reason();
     if (report_of) report["certificate_path"] = CertificatePathName(report_of->path());
     report["inter_robot_loops"] = loops / 2;  // each loop is known to both of its robots
     report["bytes_sent"] = bytes_sent;
@@ -208,6 +217,14 @@ std::string TeamReportText(const std::string& report_json) {
     out << ", lambda_min " << r.value("lambda_min", 0.0) << ", " << r.value("seconds", 0.0)
         << " s, " << r.value("bytes_sent", std::uint64_t{0}) << " bytes sent, "
         << r.value("inter_robot_loops", 0) << " inter-robot loops\n";
+    if (r.contains("objective")) out << "objective " << r["objective"].get<double>();
+    if (r.contains("lower_bound") && !r["lower_bound"].is_null()) {
+        out << ", lower bound " << r["lower_bound"].get<double>() << " (relative bound "
+            << r["relative_suboptimality_bound"].get<double>() << ")";
+    } else if (r.contains("objective")) {
+        out << ", no bound proven";
+    }
+    if (r.contains("objective")) out << "\n";
     for (const auto& robot : r.at("robots")) {
         out << "robot " << robot.value("id", -1) << ": " << robot.value("keyframes", 0)
             << " keyframes, anchor " << robot.value("anchor", -1);

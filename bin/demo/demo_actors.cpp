@@ -61,11 +61,12 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
             result->verdict = VerdictName(report.verdict());
             result->certificate_path = CertificatePathName(report.path());
             result->lambda_min = report.lambda_min();
-            // A bound is proven only by the central check of a certified report; a
-            // distributed round sends none.
-            result->has_bound = report.verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED &&
-                                report.path() != v1::CERTIFICATE_PATH_DISTRIBUTED;
+            // Only a bound the certificate proved (S + eta D PSD on the report's graph).
+            result->has_bound = report.has_bound();
             result->suboptimality_bound = result->has_bound ? report.suboptimality_bound() : 0.0;
+            result->lower_bound = result->has_bound ? report.lower_bound() : 0.0;
+            result->relative_suboptimality_bound =
+                result->has_bound ? report.relative_suboptimality_bound() : 0.0;
             result->cost = report.objective();
             result->rank = static_cast<int>(report.rank_r());
         }

@@ -16,24 +16,26 @@ namespace certislam::bin {
 
 /// What the actor graph produced.
 struct ActorMissionResult {
-    bool done = false;                         ///< every robot certified and quiet in time
-    bool certified = false;                    ///< the last certificate heard says certified
-    std::string verdict = "none";              ///< that certificate's verdict, in words
-    std::string certificate_path = "none";     ///< which check gave it: distributed round,
-                                               ///< centralised, fallback (centralised after a
-                                               ///< silent round)
-    double lambda_min = 0.0;                   ///< lambda_min(S) of that certificate
-    bool has_bound = false;                    ///< its bound below was proven
-    double suboptimality_bound = 0.0;          ///< its f - f* bound (0 unless has_bound)
-    double cost = 0.0;                         ///< its objective f
-    int rank = 0;                              ///< its relaxation rank
-    std::vector<slam::Trajectory> trajectory;  ///< [robot], in the anchor robot's frame
-    std::vector<int> anchor;                   ///< [robot] robot whose frame it is in
-    std::vector<int> inter_robot_loops;        ///< [robot] inter-robot loops its solver knows
-    int team_inter_robot_loops = 0;            ///< distinct inter-robot loops in the team graph
-    std::vector<int> loops_found;              ///< [robot] loops its matcher accepts at the end
-    std::vector<std::uint64_t> solver_steps;   ///< [robot] block updates its solver made
-    std::uint64_t bytes_sent = 0;              ///< bytes on edges between robots, measured
+    bool done = false;                          ///< every robot certified and quiet in time
+    bool certified = false;                     ///< the last certificate heard says certified
+    std::string verdict = "none";               ///< that certificate's verdict, in words
+    std::string certificate_path = "none";      ///< which check gave it: distributed round,
+                                                ///< centralised, fallback (centralised after a
+                                                ///< silent round)
+    double lambda_min = 0.0;                    ///< lambda_min(S) of that certificate
+    bool has_bound = false;                     ///< its bound below was proven
+    double suboptimality_bound = 0.0;           ///< its f - f* bound (0 unless has_bound)
+    double lower_bound = 0.0;                   ///< its f* lower bound (0 unless has_bound)
+    double relative_suboptimality_bound = 0.0;  ///< its relative bound (0 unless has_bound)
+    double cost = 0.0;                          ///< its objective f
+    int rank = 0;                               ///< its relaxation rank
+    std::vector<slam::Trajectory> trajectory;   ///< [robot], in the anchor robot's frame
+    std::vector<int> anchor;                    ///< [robot] robot whose frame it is in
+    std::vector<int> inter_robot_loops;         ///< [robot] inter-robot loops its solver knows
+    int team_inter_robot_loops = 0;             ///< distinct inter-robot loops in the team graph
+    std::vector<int> loops_found;               ///< [robot] loops its matcher accepts at the end
+    std::vector<std::uint64_t> solver_steps;    ///< [robot] block updates its solver made
+    std::uint64_t bytes_sent = 0;               ///< bytes on edges between robots, measured
     slam::TriangleMesh mesh;  ///< robot 0's mapper: every robot's submaps fused, team frame
     int submaps = 0;          ///< submaps in robot 0's map (own + received)
     std::uint64_t map_bytes_sent = 0;  ///< compressed submap bytes the mappers sent to peers

@@ -222,9 +222,8 @@ void FillFromActors(const ActorMissionResult& run, const std::vector<double>& rm
     report->verdict = run.verdict;
     report->has_bound = run.has_bound;
     report->suboptimality_bound = run.suboptimality_bound;
-    report->lower_bound = run.has_bound ? run.cost - run.suboptimality_bound : 0.0;
-    report->relative_suboptimality_bound =
-        run.has_bound && run.cost > 0.0 ? run.suboptimality_bound / run.cost : 0.0;
+    report->lower_bound = run.lower_bound;
+    report->relative_suboptimality_bound = run.relative_suboptimality_bound;
     report->cost = run.cost;
     report->rank = run.rank;
     report->rbcd_iterations = 0;

@@ -1,6 +1,8 @@
 // A robot node's publications over ROS.
 #include "bin/ros/node_publish.h"
 
+#include "bin/verdict.h"
+
 namespace certislam::bin {
 
 std::optional<Eigen::Isometry3d> TeamFromOdom(const slam::Trajectory& trajectory,
@@ -62,9 +64,14 @@ nlohmann::json NodePublisher::MakeStatus(const actors::SolverSnapshot& s) {
                        {"handed_out", in.handed_out},
                        {"ended", in.ended}}},
                      {"paths_published", paths_}};
-    j["verdict"] = s.report ? v1::CertificateVerdict_Name(s.report->verdict()) : "none";
+    j["verdict"] = s.report ? VerdictName(s.report->verdict()) : "none";
     j["lambda_min"] = s.report ? nlohmann::json(s.report->lambda_min()) : nlohmann::json();
-    j["bound"] = s.report ? nlohmann::json(s.report->suboptimality_bound()) : nlohmann::json();
+    j["objective"] = s.report ? nlohmann::json(s.report->objective()) : nlohmann::json();
+    // Only a proven bound (S + eta D PSD on the certificate's graph): null otherwise.
+    const bool proven = s.report && s.report->has_bound();
+    j["lower_bound"] = proven ? nlohmann::json(s.report->lower_bound()) : nlohmann::json();
+    j["relative_suboptimality_bound"] =
+        proven ? nlohmann::json(s.report->relative_suboptimality_bound()) : nlohmann::json();
     j["lio_sam"] = nullptr;
     if (in.last_message_stamp_ns && in.silent_s > config_.silence_warning_s) {
         j["lio_sam"] = "LIO-SAM silent since " +

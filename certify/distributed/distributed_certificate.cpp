@@ -135,6 +135,7 @@ bool MakeLocalProblem(int robot, const std::vector<slam::PoseId>& own_ids,
     const Eigen::SparseMatrix<double> Q_own = Q.leftCols(kBlock * n);
     const Eigen::MatrixXd XQ_own = X * Q_own;  // (X Q)[:, own columns]
     p.cost = XQ_own.cwiseProduct(X_own).sum();
+    p.x_norm_sq = X_own.squaredNorm();
     Eigen::MatrixXd G = p.rows.own * X_own.transpose();  // (S X^T)[own rows, :]
     if (p.rows.nbr.cols() > 0) G += p.rows.nbr * X_nbr.transpose();
     p.gradient_sq = 4.0 * G.squaredNorm();  // grad f = 2 X S (Riemannian at a critical point)

@@ -29,7 +29,16 @@ constexpr double kInverseIterationShift = 1e-10;  ///< shift below lambda, relat
 constexpr int kInverseIterationSweeps = 3;        ///< sweeps of inverse iteration
 
 /// Setup sums, in message order.
-enum SetupIndex { kCost, kGradientSq, kQRowSum, kTraceLambda, kStartNormSq, kDimension, kSetupN };
+enum SetupIndex {
+    kCost,
+    kGradientSq,
+    kQRowSum,
+    kTraceLambda,
+    kStartNormSq,
+    kDimension,
+    kXNormSq,
+    kSetupN
+};
 
 /// u -= sum_i c_i V_i, element by element in i order: the owner of a Lanczos vector and every
 /// reader of its public entries do the same operations, so they hold the same numbers.
@@ -100,6 +109,18 @@ Eigen::VectorXd TridiagonalEigenvector(const Eigen::VectorXd& a, const Eigen::Ve
 
 }  // namespace
 
+CertificateQuantities QuantitiesOf(const DistributedVerdict& v) {
+    CertificateQuantities q;
+    q.d = 3;
+    q.n = v.poses;
+    q.objective = v.cost;
+    q.dual_value = v.dual_value;
+    q.q_norm = v.q_norm;
+    q.gradient_norm = v.gradient_norm;
+    q.x_norm = v.x_norm;
+    return q;
+}
+
 void LanczosSettings::Validate() const {
     const auto fail = [](const std::string& field, double value, const std::string& rule) {
         throw std::invalid_argument("LanczosSettings." + field + " = " + std::to_string(value) +
@@ -140,6 +161,7 @@ void LanczosParticipant::Begin() {
     setup[kTraceLambda] = rows.trace_lambda;
     setup[kStartNormSq] = q.squaredNorm();
     setup[kDimension] = static_cast<double>(q.size());
+    setup[kXNormSq] = problem_.x_norm_sq;
     Share(0, kSetupStage, setup);
     SendVector(0, q);  // unnormalised: every reader divides by the norm from the setup sums
     Advance();
@@ -236,14 +258,18 @@ void LanczosParticipant::Advance() {
                 verdict_.gradient_norm = std::sqrt(sums[kGradientSq]);
                 verdict_.q_norm = sums[kQRowSum];
                 verdict_.dual_value = sums[kTraceLambda];
-                verdict_.eta = settings_.eta_relative * verdict_.q_norm;
-                verdict_.gradient_tolerance = settings_.gradient_tolerance_relative * 2.0 *
-                                              std::sqrt(verdict_.q_norm * std::abs(verdict_.cost));
+                verdict_.x_norm = std::sqrt(sums[kXNormSq]);
+                verdict_.poses = static_cast<int>(sums[kDimension]) / (problem_.rows.d + 1);
                 // Not a critical point: no eigenvalue can make a verdict (the centralised check
-                // stops here too), so no Lanczos step is spent.
-                if (verdict_.gradient_norm > verdict_.gradient_tolerance) {
-                    return Finish(DistributedVerdict::Status::kNotCritical);
-                }
+                // stops here too, by the same rule), so no Lanczos step is spent.
+                CertificateConfig rule;
+                rule.eta_relative = settings_.eta_relative;
+                rule.gradient_tolerance_relative = settings_.gradient_tolerance_relative;
+                CertificateResult first;
+                const bool critical = FirstOrderVerdict(QuantitiesOf(verdict_), rule, &first);
+                verdict_.eta = first.eta;
+                verdict_.gradient_tolerance = first.gradient_tolerance;
+                if (!critical) return Finish(DistributedVerdict::Status::kNotCritical);
                 max_steps_ = std::min(settings_.max_krylov, static_cast<int>(sums[kDimension]));
                 pending_c_.clear();
                 pending_b_ = std::sqrt(sums[kStartNormSq]);
@@ -289,7 +315,7 @@ void LanczosParticipant::Advance() {
                 const bool last = b < kBreakdown || m >= max_steps_;
                 const bool converged = (last || m % settings_.check_every == 0) && Converged(b);
                 if (converged || last) {
-                    return Finish(converged ? DistributedVerdict::Status::kCertified
+                    return Finish(converged ? DistributedVerdict::Status::kConverged
                                             : DistributedVerdict::Status::kNotConverged);
                 }
                 beta_.push_back(b);
@@ -324,141 +350,10 @@ Eigen::VectorXd LanczosParticipant::RitzSegment() const {
 }
 
 void LanczosParticipant::Finish(DistributedVerdict::Status status) {
-    // kCertified here only means "converged": the verdict follows the centralised rules.
-    if (status == DistributedVerdict::Status::kCertified) {
-        if (verdict_.gradient_norm > verdict_.gradient_tolerance) {
-            status = DistributedVerdict::Status::kNotCritical;
-        } else if (verdict_.lambda_min < -verdict_.eta) {
-            status = DistributedVerdict::Status::kNotCertified;
-        }
-    }
     verdict_.status = status;
     done_ = true;
     vectors_.clear();
     partials_.clear();
-}
-
-namespace {
-
-using Segments = std::vector<Eigen::VectorXd>;
-
-double Dot(const Segments& a, const Segments& b) {
-    double s = 0.0;
-    for (size_t k = 0; k < a.size(); ++k) s += a[k].dot(b[k]);
-    return s;
-}
-
-/// Robot k's problem from its rows alone: poses named (owner, global index); no X, so no cost
-/// and no gradient (both zero: the gradient test passes trivially).
-std::vector<LocalCertificateProblem> ProblemsOf(const std::vector<CertificateRows>& robots) {
-    std::map<int, int> owner;  // public global pose -> robot
-    for (size_t k = 0; k < robots.size(); ++k) {
-        for (const int g : robots[k].public_poses) owner[g] = static_cast<int>(k);
-    }
-    std::vector<LocalCertificateProblem> problems(robots.size());
-    for (size_t k = 0; k < robots.size(); ++k) {
-        LocalCertificateProblem& p = problems[k];
-        p.robot = static_cast<int>(k);
-        p.rows = robots[k];
-        for (const int g : p.rows.public_poses) p.public_ids.push_back({p.robot, g});
-        for (const int g : p.rows.neighbor_poses) {
-            const auto it = owner.find(g);
-            CERTISLAM_CHECK(it != owner.end());  // every neighbour pose is public at its owner
-            p.neighbor_ids.push_back({it->second, g});
-            p.neighbor_robots.insert(it->second);
-        }
-    }
-    return problems;
-}
-
-/// The exact product S v over the team (for the residual of the final Ritz vector).
-Segments Multiply(const std::vector<LocalCertificateProblem>& problems, const Segments& v) {
-    std::map<slam::PoseId, Eigen::VectorXd> published;
-    for (size_t k = 0; k < problems.size(); ++k) {
-        const int b = problems[k].rows.d + 1;
-        const Eigen::VectorXd entries = PublicEntries(problems[k].rows, v[k]);
-        for (size_t p = 0; p < problems[k].public_ids.size(); ++p) {
-            published[problems[k].public_ids[p]] = entries.segment(b * p, b);
-        }
-    }
-    Segments out(problems.size());
-    for (size_t k = 0; k < problems.size(); ++k) {
-        const int b = problems[k].rows.d + 1;
-        Eigen::VectorXd nbr(b * static_cast<Eigen::Index>(problems[k].neighbor_ids.size()));
-        for (size_t p = 0; p < problems[k].neighbor_ids.size(); ++p) {
-            nbr.segment(b * p, b) = published.at(problems[k].neighbor_ids[p]);
-        }
-        out[k] = MultiplyRows(problems[k].rows, v[k], nbr);
-    }
-    return out;
-}
-
-}  // namespace
-
-DistributedEigenResult DistributedMinEigenpair(const std::vector<CertificateRows>& robots,
-                                               const LanczosSettings& settings) {
-    settings.Validate();
-    CERTISLAM_CHECK(!robots.empty());
-    const std::vector<LocalCertificateProblem> problems = ProblemsOf(robots);
-    std::vector<int> team(robots.size());
-    for (size_t k = 0; k < team.size(); ++k) team[k] = static_cast<int>(k);
-    DistributedEigenResult result;
-    std::deque<std::function<void()>> mail;  // deliveries in send order
-    std::vector<std::unique_ptr<LanczosParticipant>> robot(robots.size());
-    std::set<std::pair<int, int>> exchanges, reductions;  // (step, stage) seen
-    for (size_t k = 0; k < robots.size(); ++k) {
-        const int from = static_cast<int>(k);
-        auto send_vector = [&, from](int step, const std::vector<slam::PoseId>& ids,
-                                     const Eigen::VectorXd& values) {
-            exchanges.insert({step, 0});
-            result.entries_exchanged += static_cast<double>(values.size());
-            for (size_t to = 0; to < problems.size(); ++to) {
-                if (!problems[to].neighbor_robots.count(from)) continue;
-                mail.push_back([&, to, from, step, ids, values] {
-                    robot[to]->OnVector(from, step, ids, values);
-                });
-            }
-        };
-        auto send_reduction = [&, from](int step, int stage, const std::vector<double>& values) {
-            reductions.insert({step, stage});
-            for (size_t to = 0; to < problems.size(); ++to) {
-                if (static_cast<int>(to) == from) continue;
-                mail.push_back([&, to, from, step, stage, values] {
-                    robot[to]->OnReduction(from, step, stage, values);
-                });
-            }
-        };
-        robot[k] = std::make_unique<LanczosParticipant>(problems[k], team, 0, settings, send_vector,
-                                                        send_reduction);
-    }
-    for (auto& r : robot) r->Begin();
-    while (!mail.empty()) {
-        const auto deliver = std::move(mail.front());
-        mail.pop_front();
-        deliver();
-    }
-    const DistributedVerdict& verdict = robot.front()->Verdict();
-    CERTISLAM_CHECK(verdict.status != DistributedVerdict::Status::kInconsistent);
-    result.status = verdict.status == DistributedVerdict::Status::kNotConverged
-                        ? DistributedEigenResult::Status::kNotConverged
-                        : DistributedEigenResult::Status::kConverged;
-    result.steps = verdict.steps;
-    Segments v(robots.size());
-    for (size_t k = 0; k < robots.size(); ++k) v[k] = robot[k]->RitzSegment();
-    const double norm = std::sqrt(Dot(v, v));
-    for (auto& s : v) s /= norm;
-    Segments Sv = Multiply(problems, v);
-    for (const auto& p : problems) {
-        result.entries_exchanged += (p.rows.d + 1.0) * static_cast<double>(p.public_ids.size());
-    }
-    result.lambda_min = Dot(v, Sv);
-    for (size_t k = 0; k < v.size(); ++k) Sv[k] -= result.lambda_min * v[k];
-    result.residual = std::sqrt(Dot(Sv, Sv));
-    result.products = result.steps + 1;
-    result.vector_exchanges = static_cast<int>(exchanges.size()) + 1;
-    result.scalar_reductions = static_cast<int>(reductions.size()) + 3;  // ||v||, v^T S v, ||r||
-    result.vector = std::move(v);
-    return result;
 }
 
 }  // namespace certislam::certify

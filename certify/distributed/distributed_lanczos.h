@@ -9,10 +9,13 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
+#include <set>
 #include <utility>
 #include <vector>
 
+#include "certify/certificate.h"
 #include "certify/distributed/distributed_certificate.h"
 #include "slam/core/pose_graph.h"
 
@@ -24,22 +27,25 @@ struct LanczosSettings {
     /// smallest eigenvalue of S sits in a cluster near 0 far below ||S||: Lanczos may need
     /// nearly the whole Krylov space, which full reorthogonalisation makes exact.
     int max_krylov = 5000;
-    double tolerance = 1e-10;                   ///< Ritz residual <= this * max |Ritz value|
-    int check_every = 5;                        ///< Ritz values computed every this many steps
-    std::uint64_t seed = 20261121;              ///< start vector seed (robot id added)
-    double eta_relative = 1e-7;                 ///< certified: lambda_min >= -eta_relative ||Q||
-    double gradient_tolerance_relative = 1e-4;  ///< critical: ||grad|| <= this 2 sqrt(||Q|| f)
+    double tolerance = 1e-10;       ///< Ritz residual <= this * max |Ritz value|
+    int check_every = 5;            ///< Ritz values computed every this many steps
+    std::uint64_t seed = 20261121;  ///< start vector seed (robot id added)
+    /// The certificate's first-order rule (FirstOrderVerdict): a round at a non-critical X
+    /// spends no Lanczos step. The certifier actor copies its CertificateConfig here.
+    double eta_relative = 1e-7;
+    double gradient_tolerance_relative = 1e-4;  ///< CertificateConfig's, copied likewise
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
 };
 
-/// What one robot concluded from a round (identical on every robot of the round).
+/// What one robot's share of a round computed (identical on every robot of the round): the
+/// team's sums at one X on one graph and the Lanczos lambda_min. The verdict and bound follow
+/// from them by the central rules (DecideRound in round_certificate.h).
 struct DistributedVerdict {
     enum class Status {
-        kCertified,     ///< critical and lambda_min >= -eta
-        kNotCertified,  ///< critical, lambda_min < -eta: a saddle
-        kNotCritical,   ///< gradient above tolerance: no verdict
+        kConverged,     ///< critical, and the Ritz value of lambda_min converged
+        kNotCritical,   ///< gradient above tolerance (FirstOrderVerdict): no eigenvalue
         kNotConverged,  ///< Lanczos ran out of steps (lambda_min: best Ritz value)
         kInconsistent,  ///< a neighbour's entries did not cover the poses this robot reads
     };
@@ -52,13 +58,18 @@ struct DistributedVerdict {
     double cost = 0.0;                ///< f(X) = tr(X Q X^T) (team)
     double dual_value = 0.0;          ///< tr(Lambda) (team)
     double gradient_norm = 0.0;       ///< ||2 X S||_F (team)
-    double gradient_tolerance = 0.0;  ///< absolute first-order tolerance
+    double gradient_tolerance = 0.0;  ///< absolute first-order tolerance (FirstOrderVerdict)
+    double x_norm = 0.0;              ///< ||X||_F (team)
+    int poses = 0;                    ///< poses of the round's graph
     int steps = 0;                    ///< Lanczos steps (S v products)
     double entries_sent = 0.0;        ///< doubles of v this robot sent to neighbours
     /// Anchor with CertifierConfig::cross_check: lambda_min of the round's joint graph by the
     /// centralised check (certify::Certify), for comparison
     std::optional<double> central_lambda_min;
 };
+
+/// The round's sums as the central verdict's first-order quantities.
+CertificateQuantities QuantitiesOf(const DistributedVerdict& v);
 
 /// Drives one robot through a round: Begin(), then feed every CertificateVector and
 /// CertificateReduction of the round; Done() once the verdict is in. Two exchanges per Lanczos
@@ -129,6 +140,19 @@ class LanczosParticipant {
     /// (step, stage) -> robot -> partial sums
     std::map<std::pair<int, int>, std::map<int, std::vector<double>>> partials_;
 };
+
+/// Message counts of a round run in memory.
+struct InMemoryTraffic {
+    std::set<std::pair<int, int>> exchanges;   ///< (step, 0) of every vector exchange
+    std::set<std::pair<int, int>> reductions;  ///< (step, stage) of every sum over robots
+    double entries = 0.0;                      ///< doubles of v sent between robots
+};
+
+/// One round over `problems` (the team: their robot ids, in this order), every message delivered
+/// in memory in send order; returns the participants once no message is left.
+std::vector<std::unique_ptr<LanczosParticipant>> RunInMemory(
+    const std::vector<LocalCertificateProblem>& problems, const LanczosSettings& settings,
+    InMemoryTraffic* traffic = nullptr);
 
 /// Result of DistributedMinEigenpair.
 struct DistributedEigenResult {

@@ -1,8 +1,9 @@
 // Certifier actors of 2-3 robots over real inproc and tcp sockets, fed converged bundles by
 // stand-in solvers (real publishers on each robot's bundle edge, real protobuf messages): in the
 // distributed mode every robot reaches the centralised lambda_min itself (only entries of v at
-// public poses and partial sums travel), at a certified optimum and at a known saddle, which
-// every robot reports not certified; the centralised mode still gives the same verdict.
+// public poses and partial sums travel), at a certified optimum and at a known saddle; the
+// anchor's certificate (the central rule on the round's sums) has the central check's verdict,
+// objective, duality gap and lower bound to 1e-9; the centralised mode reports the same.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -23,6 +24,7 @@ namespace certislam::actors {
 namespace {
 
 constexpr double kLambdaTolerance = 1e-7;  ///< |distributed - centralised| / ||Q||
+constexpr double kAgree = 1e-9;  ///< objective, gap and bound: |distributed - central| / f
 constexpr auto kTimeout = std::chrono::seconds(30);
 constexpr auto kResend = std::chrono::milliseconds(300);
 
@@ -135,8 +137,14 @@ struct Case {
 
 class CertifierTeam : public ::testing::TestWithParam<Case> {};
 
-/// Runs the certifiers until every robot has a verdict; returns them (robot order).
-std::vector<certify::DistributedVerdict> RunTeam(const TeamProblem& p, bool tcp) {
+/// What a team's certifiers concluded: every robot's round, and the anchor's certificate.
+struct TeamResult {
+    std::vector<certify::DistributedVerdict> verdicts;  ///< robot order
+    std::optional<certify::CertificateResult> anchor;   ///< decided by the central rule
+};
+
+/// Runs the certifiers until every robot has a verdict.
+TeamResult RunTeam(const TeamProblem& p, bool tcp) {
     zmq::context_t context;
     CertifierConfig config;
     config.max_staircase_steps = 0;
@@ -155,12 +163,14 @@ std::vector<certify::DistributedVerdict> RunTeam(const TeamProblem& p, bool tcp)
         std::this_thread::sleep_for(kResend);
         all = true;
         for (auto& c : certifiers) all = all && c->LastVerdict().has_value();
+        all = all && certifiers.front()->LastCertificate().has_value();
     }
-    std::vector<certify::DistributedVerdict> out;
+    TeamResult out;
     for (auto& c : certifiers) {
         c->Stop();
-        if (c->LastVerdict()) out.push_back(*c->LastVerdict());
+        if (c->LastVerdict()) out.verdicts.push_back(*c->LastVerdict());
     }
+    out.anchor = certifiers.front()->LastCertificate();
     return out;
 }
 
@@ -171,14 +181,24 @@ TEST_P(CertifierTeam, EveryRobotReachesTheCentralisedLambdaMin) {
         certify::Certify(slam::ConnectionLaplacian(p.graph), p.X, 3, certify::CertificateConfig{});
     ASSERT_EQ(central.status, c.saddle ? certify::CertificateResult::Status::kNotOptimal
                                        : certify::CertificateResult::Status::kCertified);
-    const auto verdicts = RunTeam(p, c.tcp);
+    const TeamResult team = RunTeam(p, c.tcp);
+    const auto& verdicts = team.verdicts;
     ASSERT_EQ(static_cast<int>(verdicts.size()), c.robots) << "a robot got no verdict";
+    // The anchor's certificate: the central check's verdict, objective, gap and bound.
+    ASSERT_TRUE(team.anchor.has_value());
+    EXPECT_EQ(team.anchor->status, central.status) << team.anchor->reason;
+    EXPECT_NEAR(team.anchor->objective, central.objective, kAgree * central.objective);
+    EXPECT_NEAR(team.anchor->duality_gap, central.duality_gap, kAgree * central.objective);
+    EXPECT_EQ(team.anchor->has_bound, central.has_bound);
+    EXPECT_NEAR(team.anchor->lower_bound, central.lower_bound, kAgree * central.objective);
     for (size_t r = 0; r < verdicts.size(); ++r) {
         const certify::DistributedVerdict& v = verdicts[r];
         EXPECT_EQ(v.round, verdicts.front().round) << "robot " << r;
-        EXPECT_EQ(v.status, c.saddle ? certify::DistributedVerdict::Status::kNotCertified
-                                     : certify::DistributedVerdict::Status::kCertified)
+        EXPECT_EQ(v.status, certify::DistributedVerdict::Status::kConverged)
             << "robot " << r << " lambda_min " << v.lambda_min;
+        if (c.saddle) {
+            EXPECT_LT(v.lambda_min, 0.0) << "robot " << r;
+        }
         EXPECT_NEAR(v.lambda_min, central.lambda_min, kLambdaTolerance * central.q_norm)
             << "robot " << r;
         EXPECT_DOUBLE_EQ(v.lambda_min, verdicts.front().lambda_min) << "robot " << r;
@@ -232,6 +252,13 @@ TEST(CertifierModes, CentralisedAndDistributedReportTheSameVerdictToTheSolvers) 
             EXPECT_NEAR(report->lambda_min(), central.lambda_min, kLambdaTolerance * central.q_norm)
                 << "distributed " << distributed;
             EXPECT_EQ(report->iteration(), p.graph.edges.size());
+            // One X, one graph: the central objective, gap and bound, whichever mode.
+            EXPECT_NEAR(report->objective(), central.objective, kAgree * central.objective);
+            EXPECT_NEAR(report->duality_gap(), central.duality_gap, kAgree * central.objective);
+            EXPECT_EQ(report->has_bound(), central.has_bound);
+            EXPECT_NEAR(report->lower_bound(), central.lower_bound, kAgree * central.objective);
+            EXPECT_NEAR(report->relative_suboptimality_bound(),
+                        central.relative_suboptimality_bound, kAgree);
         }
     }
 }
@@ -261,11 +288,12 @@ TEST(CertifierSettled, NoNewRoundForASettledSolutionUntilTheGraphChanges) {
     for (auto& c : certifiers) c->Start();
     const CertifierActor& anchor = *certifiers[0];
     const auto deadline = std::chrono::steady_clock::now() + kTimeout;
-    while (!anchor.LastVerdict() && std::chrono::steady_clock::now() < deadline) {
+    while (!anchor.LastCertificate() && std::chrono::steady_clock::now() < deadline) {
         FeedFor(feeder, kResend);
     }
     ASSERT_TRUE(anchor.LastVerdict().has_value());
-    ASSERT_EQ(anchor.LastVerdict()->status, certify::DistributedVerdict::Status::kCertified);
+    ASSERT_TRUE(anchor.LastCertificate().has_value());
+    ASSERT_EQ(anchor.LastCertificate()->status, certify::CertificateResult::Status::kCertified);
     const int rounds = anchor.Rounds();
 
     // The solvers' blocks still creep after the verdict: new bundles, no new round.

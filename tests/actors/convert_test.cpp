@@ -206,6 +206,31 @@ TEST(Convert, CertificateReportCarriesVerdictAndLambda) {
     EXPECT_EQ(report.rank_r(), 5u);
     EXPECT_EQ(VerdictOf(certify::CertificateResult::Status::kCertified),
               v1::CERTIFICATE_VERDICT_CERTIFIED);
+    EXPECT_FALSE(report.has_bound());
+}
+
+TEST(Convert, EveryVerdictKeepsTheCertificatesSpellingOnTheWire) {
+    using S = certify::CertificateResult::Status;
+    for (const S status : {S::kCertified, S::kNotOptimal, S::kNotCritical, S::kInconclusive}) {
+        certify::CertificateResult result;
+        result.status = status;
+        EXPECT_EQ(VerdictName(ToProto(result, 3).verdict()), certify::VerdictName(status));
+    }
+    EXPECT_EQ(VerdictName(v1::CERTIFICATE_VERDICT_UNSPECIFIED), "none");
+}
+
+TEST(Convert, CertifiedReportCarriesItsProvenBound) {
+    certify::CertificateResult result;
+    result.status = certify::CertificateResult::Status::kCertified;
+    result.has_bound = true;
+    result.objective = 10.0;
+    result.lower_bound = 9.99999;
+    result.relative_suboptimality_bound = 1e-6;
+    const auto report = ToProto(result, 3);
+    EXPECT_TRUE(report.has_bound());
+    EXPECT_EQ(report.lower_bound(), 9.99999);
+    EXPECT_EQ(report.relative_suboptimality_bound(), 1e-6);
+    EXPECT_EQ(report.objective(), 10.0);
 }
 
 }  // namespace

@@ -71,6 +71,11 @@ TEST_F(Demo, ReportHasTheIssueKeysAndCertifiedBeatsTheBaselines) {
         EXPECT_TRUE(j.contains(key)) << key;
     }
     EXPECT_TRUE(j["certified"].get<bool>());
+    // One certified objective with the bound the certificate proved for it.
+    EXPECT_EQ(j["verdict"].get<std::string>(), "certified");
+    ASSERT_TRUE(j.contains("lower_bound")) << "certified without a proven bound";
+    EXPECT_LE(j["lower_bound"].get<double>(), j["objective"].get<double>());
+    EXPECT_LE(j["relative_suboptimality_bound"].get<double>(), 1e-6);
     // The certified row, the certificate, the loops and the bytes come from the actor graph.
     EXPECT_EQ(j["certified_source"].get<std::string>(), "actor graph");
     EXPECT_TRUE(j["actor_graph"]["done"].get<bool>());

@@ -1,7 +1,8 @@
 // `certislam run` on real data, as a real process: the MulRan KAIST03 keyframe folder split into
 // two robots (even / odd keyframes, robot 1's odometry moved by a rigid offset) through the whole
 // actor graph over inproc: certified, robot 1's odometry frame recovered within 0.2 m / 1 degree,
-// one TUM trajectory per robot with every keyframe. Bad source configurations fail naming the
+// one TUM trajectory per robot with every keyframe. A simulated 2-robot team reports one
+// certified objective with its proven lower bound. Bad source configurations fail naming the
 // field.
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -129,6 +130,30 @@ TEST_F(Run, TimeoutEndsTheProcessWhateverItsActorsAreDoing) {
     const auto report = nlohmann::json::parse(run.out.substr(run.out.find('{')));
     EXPECT_NE(report.at("verdict").get<std::string>(), "certified");
     EXPECT_LT(seconds, 3.0 + 2.0);  // 1 s of start-up and teardown, 1 s of slack on a busy CI
+}
+
+TEST_F(Run, SimulatedTeamReportsOneCertifiedObjectiveWithItsProvenBound) {
+    constexpr double kMaxRelativeBound = 1e-6;  ///< CertificateConfig::max_relative_bound
+    const std::string config = Write("sim.json", R"({"robots": [0, 1],
+  "source": {"kind": "simulator", "seed": 1, "max_keyframes": 40},
+  "solver": {"rank": 5, "rel_grad_tol": 1e-9},
+  "matcher": {"query_stride": 3, "max_sc_distance": 0.2}})");
+    const auto run = RunConfig(config);
+    ASSERT_EQ(run.exit_code, 0) << run.out;
+    const auto report = nlohmann::json::parse(run.out.substr(run.out.find('{')));
+    EXPECT_EQ(report.at("verdict").get<std::string>(), "certified") << run.out;
+    EXPECT_TRUE(report.at("certified").get<bool>());
+    ASSERT_TRUE(report.at("lower_bound").is_number()) << "a certified report without its bound";
+    const double objective = report.at("objective").get<double>();
+    const double lower = report.at("lower_bound").get<double>();
+    const double relative = report.at("relative_suboptimality_bound").get<double>();
+    EXPECT_GT(objective, 0.0);
+    EXPECT_LE(lower, objective);
+    EXPECT_GE(lower, 0.0);
+    EXPECT_LE(relative, kMaxRelativeBound);
+    EXPECT_LE((objective - lower) / objective, kMaxRelativeBound);
+    // One X, one graph: the duality gap is tr(X S X^T) >= -eta d n, tiny against f.
+    EXPECT_GE(report.at("duality_gap").get<double>(), -kMaxRelativeBound * objective);
 }
 
 TEST_F(Run, KeyframeFolderPerRobotIsRead) {

@@ -12,37 +12,10 @@
 
 #include "bin/command.h"
 #include "bin/config/team_config.h"
-#include "bin/demo/demo_output.h"
 #include "transport/curve.h"
 
 namespace certislam::bin {
 namespace {
-
-/// Meshes the mapper's submaps (own and, where it fuses them, the peers') and writes the PLY
-/// into `out_dir`; returns what the report says about it (null without a mapper).
-nlohmann::json WriteMesh(actors::RobotNode& node, const actors::RobotNodeConfig& config, int id,
-                         const std::string& out_dir) {
-    actors::MapperActor* mapper = node.Mapper();
-    if (!mapper) return nullptr;
-    // Two publish periods: the peers' last re-anchorings (pose-only updates) arrive.
-    std::this_thread::sleep_for(2 * config.mapper.publish_period);
-    const slam::TriangleMesh mesh = mapper->FusedMesh(config.mapper.map.tsdf.voxel_size_m);
-    const actors::MapperStats stats = mapper->Stats();
-    nlohmann::json out{{"vertices", mesh.vertices.size()},
-                       {"triangles", mesh.triangles.size()},
-                       {"own_submaps", stats.own_submaps},
-                       {"peer_submaps", stats.peer_submaps},
-                       {"submap_sends", stats.submap_sends},
-                       {"pose_only_sends", stats.pose_only_sends},
-                       {"submap_bytes_sent", stats.submap_bytes_sent}};
-    if (out_dir.empty()) return out;
-    std::filesystem::create_directories(out_dir);
-    const std::string path = out_dir + "/robot" + std::to_string(id) + ".mesh.ply";
-    std::string error;
-    if (!WriteMeshPly(path, mesh, &error)) throw std::runtime_error(error);
-    out["path"] = path;
-    return out;
-}
 
 int RunRobot(int argc, char** argv) {
     CLI::App app{"One robot of a configuration; peers over tcp (CURVE with keys)"};
@@ -88,7 +61,7 @@ int RunRobot(int argc, char** argv) {
         const auto snapshot = node.Snapshot();
         const auto bytes = node.BytesSentToPeers();
         const auto bytes_by_actor = node.BytesSentToPeersByActor();
-        const nlohmann::json mesh = WriteMesh(node, node_config, id, out_dir);
+        const nlohmann::json mesh = WriteRobotMesh(node, node_config, id, out_dir);
         node.Stop();
         auto report = nlohmann::json::parse(
             WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds, ""));

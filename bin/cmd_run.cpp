@@ -1,8 +1,10 @@
 // `certislam run CONFIG [--out DIR] [--json]`: every robot of the configuration in one process,
-// each a full actor graph, the robots talking over inproc (single-binary local mode).
+// each a full actor graph, the robots talking over inproc (single-binary local mode). With
+// mapping on, each robot's mapper mesh goes to DIR/robot<K>.mesh.ply (the anchor's is the team's).
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 #include <thread>
 
 #include "bin/command.h"
@@ -19,7 +21,9 @@ int RunRun(int argc, char** argv) {
     double timeout_s = 300.0;
     app.option_defaults()->always_capture_default();
     app.add_option("CONFIG", config_path, "team configuration (YAML or JSON)")->required();
-    app.add_option("--out", out_dir, "write robot<k>.tum and report.json here");
+    app.add_option("--out", out_dir,
+                   "write report.json, robot<k>.tum, robot<k>.ground_truth.tum (where the source "
+                   "has a reference) and robot<k>.mesh.ply (mapping on) here");
     app.add_option("--timeout", timeout_s, "give up after this many seconds");
     app.add_flag("--json", json, "print the report as JSON");
     CLI11_PARSE(app, argc, argv);
@@ -51,9 +55,14 @@ int RunRun(int argc, char** argv) {
             snapshots.push_back(node->Snapshot());
             bytes += node->BytesSentToPeers();
         }
+        std::vector<nlohmann::json> meshes;  // the anchor's fuses the team's submaps
+        for (size_t k = 0; k < nodes.size(); ++k) {
+            const int r = config.robots[k];
+            meshes.push_back(WriteRobotMesh(*nodes[k], NodeConfigFor(config, r), r, out_dir));
+        }
         for (auto& node : nodes) node->Stop();
         const std::string report = WriteTeamOutputs(out_dir, config.robots, snapshots, source,
-                                                    bytes, seconds, "report.json");
+                                                    bytes, seconds, "report.json", meshes);
         if (json) {
             std::printf("%s\n", report.c_str());
         } else {

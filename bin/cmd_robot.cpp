@@ -12,42 +12,11 @@
 
 #include "bin/command.h"
 #include "bin/config/team_config.h"
-#include "bin/demo/demo_output.h"
 #include "bin/stop_within.h"
 #include "transport/curve.h"
 
 namespace certislam::bin {
 namespace {
-
-/// Meshes the mapper's submaps (own and, where it fuses them, the peers') and writes the PLY
-/// into `out_dir`; returns what the report says about it (null without a mapper).
-nlohmann::json WriteMesh(actors::RobotNode& node, const actors::RobotNodeConfig& config, int id,
-                         const std::string& out_dir) {
-    actors::MapperActor* mapper = node.Mapper();
-    if (!mapper) return nullptr;
-    // Two publish periods: the peers' last re-anchorings (pose-only updates) arrive.
-    std::this_thread::sleep_for(2 * config.mapper.publish_period);
-    const slam::TriangleMesh mesh = mapper->FusedMesh(config.mapper.map.tsdf.voxel_size_m);
-    const actors::MapperStats stats = mapper->Stats();
-    nlohmann::json out{{"vertices", mesh.vertices.size()},
-                       {"triangles", mesh.triangles.size()},
-                       {"own_submaps", stats.own_submaps},
-                       {"peer_submaps", stats.peer_submaps},
-                       {"submap_sends", stats.submap_sends},
-                       {"pose_only_sends", stats.pose_only_sends},
-                       {"submap_bytes_sent", stats.submap_bytes_sent},
-                       {"voxel_memory_bytes", stats.budget.memory_bytes},
-                       {"coarsenings", stats.budget.coarsenings},
-                       {"voxel_m_now", stats.budget.voxel_size_m},
-                       {"skipped_over_budget", stats.budget.skipped_scans}};
-    if (out_dir.empty()) return out;
-    std::filesystem::create_directories(out_dir);
-    const std::string path = out_dir + "/robot" + std::to_string(id) + ".mesh.ply";
-    std::string error;
-    if (!WriteMeshPly(path, mesh, &error)) throw std::runtime_error(error);
-    out["path"] = path;
-    return out;
-}
 
 int RunRobot(int argc, char** argv) {
     CLI::App app{"One robot of a configuration; peers over tcp (CURVE with keys)"};
@@ -94,7 +63,7 @@ int RunRobot(int argc, char** argv) {
         const auto bytes = node.BytesSentToPeers();
         const auto bytes_by_actor = node.BytesSentToPeersByActor();
         // After the deadline the mapper is not waited for: no mesh then.
-        const nlohmann::json mesh = done ? WriteMesh(node, node_config, id, out_dir) : nullptr;
+        const nlohmann::json mesh = done ? WriteRobotMesh(node, node_config, id, out_dir) : nullptr;
         node.RequestStop();
         auto report = nlohmann::json::parse(
             WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds, ""));

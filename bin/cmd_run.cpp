@@ -1,8 +1,10 @@
 // `certislam run CONFIG [--out DIR] [--json]`: every robot of the configuration in one process,
-// each a full actor graph, the robots talking over inproc (single-binary local mode).
+// each a full actor graph, the robots talking over inproc (single-binary local mode). With
+// mapping on, each robot's mapper mesh goes to DIR/robot<K>.mesh.ply (the anchor's is the team's).
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 #include <thread>
 
 #include "bin/command.h"
@@ -20,7 +22,9 @@ int RunRun(int argc, char** argv) {
     double timeout_s = 300.0;
     app.option_defaults()->always_capture_default();
     app.add_option("CONFIG", config_path, "team configuration (YAML or JSON)")->required();
-    app.add_option("--out", out_dir, "write robot<k>.tum and report.json here");
+    app.add_option("--out", out_dir,
+                   "write report.json, robot<k>.tum, robot<k>.ground_truth.tum (where the source "
+                   "has a reference) and robot<k>.mesh.ply (mapping on) here");
     app.add_option("--timeout", timeout_s, "give up after this many seconds");
     app.add_flag("--json", json, "print the report as JSON");
     CLI11_PARSE(app, argc, argv);
@@ -31,10 +35,12 @@ int RunRun(int argc, char** argv) {
         const TeamSource source(config.source, config.robots);
         zmq::context_t context;
         std::vector<std::unique_ptr<actors::RobotNode>> nodes;
+        std::vector<actors::RobotNodeConfig> node_configs;  // NodeConfigFor checks the logs: once
         for (int r : config.robots) {
+            node_configs.push_back(NodeConfigFor(config, r));
             nodes.push_back(
                 std::make_unique<actors::RobotNode>(context, actors::InprocWiring(r, config.robots),
-                                                    source.For(r), NodeConfigFor(config, r)));
+                                                    source.For(r), node_configs.back()));
         }
         for (auto& node : nodes) node->Start();
         bool done = false;
@@ -52,9 +58,13 @@ int RunRun(int argc, char** argv) {
             snapshots.push_back(node->Snapshot());
             bytes += node->BytesSentToPeers();
         }
+        std::vector<nlohmann::json> meshes;  // the anchor's fuses the team's submaps
+        for (size_t k = 0; k < nodes.size() && done; ++k) {  // after the deadline: no meshes
+            meshes.push_back(WriteRobotMesh(*nodes[k], node_configs[k], config.robots[k], out_dir));
+        }
         for (auto& node : nodes) node->RequestStop();  // all at once: their handlers end together
         const std::string report = WriteTeamOutputs(out_dir, config.robots, snapshots, source,
-                                                    bytes, seconds, "report.json");
+                                                    bytes, seconds, "report.json", meshes);
         if (json) {
             std::printf("%s\n", report.c_str());
         } else {

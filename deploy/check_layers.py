@@ -44,6 +44,7 @@ TARGETS = {
     "certislam_actors": "actors",
     "certislam": "bin",
     "certislam_team_config": "bin",
+    "certislam_python": "bin",
 }
 
 

@@ -12,7 +12,7 @@ PACKAGES=(
   librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev pluginlib-dev libament-index-cpp-dev
   ros-core-dev libroscpp-dev libtf2-ros-dev libvisualization-msgs-dev librosbag-dev
   python3-rosmaster python3-rostopic python3-rosbag python3-rospy
-  libzstd-dev
+  libzstd-dev pybind11-dev python3-numpy
 )
 
 missing=()

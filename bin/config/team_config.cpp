@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include "actors/durable_log.h"
 #include "bin/command.h"
@@ -18,6 +19,7 @@
 #include "bin/verdict.h"
 #include "slam/eval/trajectory_metrics.h"
 #include "slam/io/trajectory_io.h"
+#include "slam/mapping/mesh_io.h"
 #include "transport/curve.h"
 
 namespace certislam::bin {
@@ -59,6 +61,23 @@ void Evaluate(const TeamSource& source, int robot, const actors::SolverSnapshot&
     }
     (*out)["offset_error_m"] = max_t;
     (*out)["offset_error_deg"] = max_r;
+}
+
+/// DIR/robot<K>.tum (the estimate) and, where the source has a reference,
+/// DIR/robot<K>.ground_truth.tum.
+void WriteRobotTrajectories(const std::string& dir, int robot, const slam::Trajectory& estimate,
+                            const TeamSource& source) {
+    std::filesystem::create_directories(dir);
+    const std::string stem = dir + "/robot" + std::to_string(robot);
+    std::string error;
+    if (!slam::WriteTrajectory(stem + ".tum", estimate, slam::TrajectoryFormat::kTum, &error)) {
+        throw std::runtime_error(error);
+    }
+    const auto truth = source.Truth(robot);
+    if (truth && !slam::WriteTrajectory(stem + ".ground_truth.tum", *truth,
+                                        slam::TrajectoryFormat::kTum, &error)) {
+        throw std::runtime_error(error);
+    }
 }
 
 }  // namespace
@@ -157,7 +176,7 @@ actors::TeamWiring TcpWiring(const TeamConfig& config, int robot) {
 std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& robots,
                              const std::vector<actors::SolverSnapshot>& snapshots,
                              const TeamSource& source, std::uint64_t bytes_sent, double seconds,
-                             const std::string& report_name) {
+                             const std::string& report_name, const std::vector<json>& meshes) {
     json report;
     report["schema_version"] = kSchemaVersion;
     report["robots"] = json::array();
@@ -172,13 +191,9 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
                    {"inter_robot_loops", s.inter_robot_loops},
                    {"staircase_level", s.staircase_level}};
         Evaluate(source, robots[k], s, &robot);
+        if (k < meshes.size() && !meshes[k].is_null()) robot["mesh"] = meshes[k];
         report["robots"].push_back(robot);
-        if (!dir.empty()) {
-            std::filesystem::create_directories(dir);
-            std::string error;
-            slam::WriteTrajectory(dir + "/robot" + std::to_string(robots[k]) + ".tum", s.trajectory,
-                                  slam::TrajectoryFormat::kTum, &error);
-        }
+        if (!dir.empty()) WriteRobotTrajectories(dir, robots[k], s.trajectory, source);
     }
     if (!source.TruthKind().empty()) report["reference"] = source.TruthKind();
     const auto& report_of = snapshots.front().report;
@@ -206,6 +221,35 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
         std::ofstream(dir + "/" + report_name) << text << "\n";
     }
     return text;
+}
+
+json WriteRobotMesh(actors::RobotNode& node, const actors::RobotNodeConfig& config, int id,
+                    const std::string& out_dir) {
+    actors::MapperActor* mapper = node.Mapper();
+    if (!mapper) return nullptr;
+    // Two publish periods: the peers' last re-anchorings (pose-only updates) arrive.
+    std::this_thread::sleep_for(2 * config.mapper.publish_period);
+    const slam::TriangleMesh mesh = mapper->FusedMesh(config.mapper.map.tsdf.voxel_size_m);
+    const actors::MapperStats stats = mapper->Stats();
+    json out{{"vertices", mesh.vertices.size()},
+             {"triangles", mesh.triangles.size()},
+             {"own_submaps", stats.own_submaps},
+             {"peer_submaps", stats.peer_submaps},
+             {"submap_sends", stats.submap_sends},
+             {"pose_only_sends", stats.pose_only_sends},
+             {"submap_bytes_sent", stats.submap_bytes_sent},
+             {"voxel_memory_bytes", stats.budget.memory_bytes},
+             {"coarsenings", stats.budget.coarsenings},
+             {"voxel_m_now", stats.budget.voxel_size_m},
+             {"skipped_over_budget", stats.budget.skipped_scans}};
+    if (out_dir.empty()) return out;
+    std::filesystem::create_directories(out_dir);
+    const std::string path = out_dir + "/robot" + std::to_string(id) + ".mesh.ply";
+    if (const std::string error = slam::WriteMeshPly(path, mesh); !error.empty()) {
+        throw std::runtime_error(error);
+    }
+    out["path"] = path;
+    return out;
 }
 
 std::string TeamReportText(const std::string& report_json) {

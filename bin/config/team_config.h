@@ -4,6 +4,7 @@
 
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -54,7 +55,14 @@ actors::TeamWiring TcpWiring(const TeamConfig& config, int robot);
 std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& robots,
                              const std::vector<actors::SolverSnapshot>& snapshots,
                              const TeamSource& source, std::uint64_t bytes_sent, double seconds,
-                             const std::string& report_name);
+                             const std::string& report_name,
+                             const std::vector<nlohmann::json>& meshes = {});
+
+/// Meshes the node's mapper (its own submaps and, where it fuses them, its peers') and writes
+/// OUT_DIR/robot<ID>.mesh.ply (nothing when OUT_DIR is empty); returns the report's `mesh`
+/// entry (null without a mapper). Throws std::runtime_error naming the file on failure.
+nlohmann::json WriteRobotMesh(actors::RobotNode& node, const actors::RobotNodeConfig& config,
+                              int id, const std::string& out_dir);
 
 /// The human summary of a report of WriteTeamOutputs (verdict, per robot errors).
 std::string TeamReportText(const std::string& report_json);

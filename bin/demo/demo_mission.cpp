@@ -20,6 +20,7 @@
 #include "slam/io/g2o_io.h"
 #include "slam/io/trajectory_io.h"
 #include "slam/mapping/keyframe_fusion.h"
+#include "slam/mapping/mesh_io.h"
 #include "slam/sim/simulator.h"
 #include "slam/sim/tunnel_odometry.h"
 
@@ -138,7 +139,10 @@ void WriteFiles(const DemoOptions& options, const SimulatedTeam& team,
     }
     Check(slam::WriteG2o(path("joint_graph.g2o"), mission.graph, mission.solution.poses, &error),
           error);
-    if (mesh != nullptr) Check(WriteMeshPly(path("mesh.ply"), *mesh, &error), error);
+    if (mesh != nullptr) {
+        error = slam::WriteMeshPly(path("mesh.ply"), *mesh);
+        Check(error.empty(), error);
+    }
     Check(WriteDemoPlot(path("trajectories.svg"), plot, &error), error);
 }
 

@@ -1,4 +1,4 @@
-// SVG plot (hand-written polylines), binary PLY mesh, stderr progress bar.
+// SVG plot (hand-written polylines), stderr progress bar.
 #include "bin/demo/demo_output.h"
 
 #include <algorithm>
@@ -71,29 +71,6 @@ bool WriteTrajectorySvg(const std::string& path, const std::string& title,
         << "\" y2=\"" << by << "\" stroke=\"black\" stroke-width=\"3\"/>\n<text x=\""
         << kMarginPx + bar_m * scale + 8 << "\" y=\"" << by + 5 << "\">" << bar_m
         << " m</text>\n</svg>\n";
-    if (!out) *error = path + ": write failed";
-    return static_cast<bool>(out);
-}
-
-bool WriteMeshPly(const std::string& path, const slam::TriangleMesh& mesh, std::string* error) {
-    std::ofstream out(path, std::ios::binary);
-    if (!out) {
-        *error = path + ": cannot open for writing";
-        return false;
-    }
-    out << "ply\nformat binary_little_endian 1.0\ncomment certislam demo: fused TSDF mesh\n"
-        << "element vertex " << mesh.vertices.size() << "\nproperty float x\nproperty float y\n"
-        << "property float z\nelement face " << mesh.triangles.size()
-        << "\nproperty list uchar int vertex_indices\nend_header\n";
-    for (const auto& v : mesh.vertices) {
-        out.write(reinterpret_cast<const char*>(v.data()), 3 * sizeof(float));
-    }
-    const std::uint8_t three = 3;
-    for (const auto& t : mesh.triangles) {
-        const std::int32_t idx[3] = {t.x(), t.y(), t.z()};
-        out.write(reinterpret_cast<const char*>(&three), 1);
-        out.write(reinterpret_cast<const char*>(idx), sizeof(idx));
-    }
     if (!out) *error = path + ": write failed";
     return static_cast<bool>(out);
 }

@@ -1,12 +1,11 @@
-// Files the demo writes besides trajectories and the graph: the SVG plot, the PLY mesh, and the
-// progress bar it draws on stderr.
+// Files the demo writes besides trajectories, the graph and the mesh (slam/mapping/mesh_io.h):
+// the SVG plot, and the progress bar it draws on stderr.
 #pragma once
 
 #include <string>
 #include <vector>
 
 #include "slam/core/trajectory.h"
-#include "slam/mapping/mesh.h"
 
 namespace certislam::bin {
 
@@ -22,10 +21,6 @@ struct PlotSeries {
 /// and sets *error when the file cannot be written.
 bool WriteTrajectorySvg(const std::string& path, const std::string& title,
                         const std::vector<PlotSeries>& series, std::string* error);
-
-/// Writes a binary little-endian PLY (float32 vertices, uint8-counted int32 faces), the form
-/// MeshLab and CloudCompare open. Returns false and sets *error on failure.
-bool WriteMeshPly(const std::string& path, const slam::TriangleMesh& mesh, std::string* error);
 
 /// A one-line progress bar on stderr ("\r[#####.....]  50% stage"), finished by Done().
 class ProgressBar {

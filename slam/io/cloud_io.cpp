@@ -1,7 +1,9 @@
 // The KITTI .bin reader, the extension dispatch and the writers (PCD and PLY readers are in
 // cloud_io_pcd.cpp and cloud_io_ply.cpp).
-// Written by hand rather than with PCL's readers: PCL's I/O would pull PCL into every user of
-// these files, and its errors do not say which file or what was wrong.
+// The readers parse and bound-check headers themselves (PCL's PCDReader and PLYReader trust the
+// header's counts, print their errors without file or line, and the PCD one can read out of
+// bounds on a crafted file); PCL decodes LZF (cloud_io_pcd.cpp). The writers stay here: PCL's
+// refuse an empty cloud and report failures on stderr or by exception, not as an error text.
 #include <algorithm>
 #include <cctype>
 #include <charconv>

@@ -1,9 +1,14 @@
-// The PCD reader: header, ASCII, binary and binary_compressed (LZF) point data.
+// The PCD reader: header, ASCII, binary and binary_compressed (LZF, PCL's decoder) point data.
+// The header is parsed and every size checked against the file here, not by PCL's PCDReader: it
+// trusts POINTS x record size and the compressed sizes (a crafted header makes it read or write
+// out of bounds), and its errors name neither the line nor the fault.
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <string>
 #include <vector>
+
+#include <pcl/io/lzf.h>
 
 #include "slam/io/cloud_io_parse.h"
 #include "slam/io/cloud_io_pcd.h"
@@ -207,39 +212,6 @@ CloudReadResult DecodeBinary(const unsigned char* data, const PcdHeader& h, bool
     return result;
 }
 
-// LZF decompression (liblzf format, as PCL writes binary_compressed): returns false on a
-// malformed stream. Written here so the reader needs no PCL.
-bool LzfDecompress(const unsigned char* in, std::size_t in_size, unsigned char* out,
-                   std::size_t out_size) {
-    const unsigned char* ip = in;
-    const unsigned char* const in_end = in + in_size;
-    unsigned char* op = out;
-    unsigned char* const out_end = out + out_size;
-    while (ip < in_end) {
-        std::size_t ctrl = *ip++;
-        if (ctrl < 32) {  // literal run of ctrl + 1 bytes
-            ++ctrl;
-            if (op + ctrl > out_end || ip + ctrl > in_end) return false;
-            std::memcpy(op, ip, ctrl);
-            op += ctrl;
-            ip += ctrl;
-        } else {  // back reference
-            std::size_t len = ctrl >> 5;
-            if (len == 7) {
-                if (ip >= in_end) return false;
-                len += *ip++;
-            }
-            if (ip >= in_end) return false;
-            const std::size_t back = ((ctrl & 0x1f) << 8) + *ip++ + 1;
-            len += 2;
-            if (back > static_cast<std::size_t>(op - out) || op + len > out_end) return false;
-            const unsigned char* ref = op - back;
-            for (std::size_t k = 0; k < len; ++k) *op++ = *ref++;  // may overlap
-        }
-    }
-    return op == out_end;
-}
-
 // A back reference (3 bytes) yields at most 264 bytes, a literal run never more than it reads.
 constexpr std::size_t kLzfMaxExpansion = 88;
 
@@ -279,9 +251,11 @@ CloudReadResult ReadCompressed(const std::string& path, const std::vector<unsign
                         std::to_string(expected) + " (LZF expands at most " +
                         std::to_string(kLzfMaxExpansion) + "x)");
     }
+    // The sizes are checked above against the file and the header (PCL's reader trusts them and
+    // reads past its buffer on a crafted file): only then does PCL's LZF decoder run.
     std::vector<unsigned char> raw(expected);
-    if (expected > 0 &&
-        !LzfDecompress(bytes.data() + h.data_offset + 8, compressed, raw.data(), expected)) {
+    if (expected > 0 && pcl::lzfDecompress(bytes.data() + h.data_offset + 8, compressed, raw.data(),
+                                           uncompressed) != uncompressed) {
         return Fail(Status::kBadData, path, 0, "binary_compressed: corrupt LZF stream");
     }
     return DecodeBinary(raw.data(), h, /*field_major=*/true);

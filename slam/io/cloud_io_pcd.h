@@ -1,4 +1,4 @@
-// The PCD reader: header, ASCII, binary and binary_compressed (LZF) point data.
+// The PCD reader: header, ASCII, binary and binary_compressed (LZF, decoded by PCL) point data.
 #pragma once
 
 #include <string>

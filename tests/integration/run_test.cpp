@@ -81,6 +81,9 @@ TEST_F(Run, KaistSplitIntoTwoRobotsRecoversTheOffsetCertified) {
     EXPECT_LT(robots[0].at("offset_error_m").get<double>(), kOffsetToleranceM) << run.out;
     EXPECT_EQ(CountTumRows(dir_ / "out" / "robot0.tum"), kKeyframesRobot0);
     EXPECT_EQ(CountTumRows(dir_ / "out" / "robot1.tum"), kKeyframesRobot1);
+    // The split's reference: each robot's keyframes' true poses, beside its estimate.
+    EXPECT_EQ(CountTumRows(dir_ / "out" / "robot0.ground_truth.tum"), kKeyframesRobot0);
+    EXPECT_EQ(CountTumRows(dir_ / "out" / "robot1.ground_truth.tum"), kKeyframesRobot1);
     EXPECT_TRUE(std::filesystem::exists(dir_ / "out" / "report.json"));
     std::printf(
         "KAIST03 split through `certislam run`: offset error %.4f m / %.4f deg, %d loops, "
@@ -169,6 +172,26 @@ TEST_F(Run, KeyframeFolderPerRobotIsRead) {
     const auto report = nlohmann::json::parse(run.out.substr(run.out.find('{')));
     EXPECT_EQ(report.at("robots")[0].at("keyframes").get<int>(), 6);
     EXPECT_LT(report.at("robots")[0].at("ate_rmse_own_alignment").get<double>(), 1e-3);
+}
+
+TEST_F(Run, MappingWritesTheMeshAndTheReference) {
+    const std::string config = Write("mapping.json", R"({"robots": [0],
+  "source": {"kind": "keyframe_folder", "paths": {"0": ")" +
+                                                         kKaist + R"("},
+             "max_keyframes": 6},
+  "matcher": {"intra_robot": false},
+  "mapping": {"enabled": true}})");
+    const auto run = RunConfig(config);
+    ASSERT_EQ(run.exit_code, 0) << run.out;
+    const auto report = nlohmann::json::parse(run.out.substr(run.out.find('{')));
+    const auto& robot = report.at("robots")[0];
+    ASSERT_TRUE(robot.contains("mesh")) << run.out;
+    EXPECT_GT(robot.at("mesh").at("triangles").get<int>(), 0) << run.out;
+    std::ifstream mesh(dir_ / "out" / "robot0.mesh.ply", std::ios::binary);
+    std::string magic(4, '\0');
+    mesh.read(magic.data(), 4);
+    EXPECT_EQ(magic, "ply\n");
+    EXPECT_EQ(CountTumRows(dir_ / "out" / "robot0.ground_truth.tum"), 6);  // the folder's poses
 }
 
 TEST_F(Run, RosbagPerRobotIsRead) {

@@ -4,10 +4,8 @@
 #include <sys/resource.h>
 
 #include <cstdio>
-#include <nlohmann/json.hpp>
 #include <stdexcept>
 
-#include "actors/pose_graph_team.h"
 #include "bin/command.h"
 #include "bin/verdict.h"
 #include "slam/core/graph_split.h"
@@ -21,49 +19,6 @@ double PeakRssMb() {
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
     return static_cast<double>(usage.ru_maxrss) / 1024.0;  // KiB on Linux
-}
-
-nlohmann::json ToJson(const DistributedSolveOptions& o, const slam::PoseGraph& graph, int robots,
-                      const actors::PoseGraphTeamResult& r) {
-    const v1::CertificateReport report = r.report.value_or(v1::CertificateReport{});
-    const bool certified = r.done && report.verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
-    nlohmann::json j = {{"schema_version", kSchemaVersion},
-                        {"file", o.file},
-                        {"method", "rbcd"},
-                        {"path", "distributed"},
-                        {"transport", "inproc"},
-                        {"objective", report.objective()},
-                        {"cost", report.objective()},
-                        {"certified", certified},
-                        {"verdict", VerdictName(report.verdict())},
-                        {"certificate_path", CertificatePathName(report.path())},
-                        {"rank", r.rank},
-                        {"iterations", r.iterations},
-                        {"seconds", r.seconds},
-                        {"quiet_seconds", std::chrono::duration<double>(kQuiet).count()},
-                        {"certificate_rounds", r.certificate_rounds},
-                        {"lanczos_steps", r.lanczos_steps},
-                        {"escapes", r.escapes},
-                        {"bytes_between_robots",
-                         {{"total", r.bytes_between_robots}, {"by_actor", r.bytes_by_actor}}},
-                        {"peak_rss_mb", PeakRssMb()},
-                        {"poses", graph.n},
-                        {"edges", static_cast<int>(graph.edges.size())},
-                        {"robots", robots}};
-    nlohmann::json by_robot = nlohmann::json::object(), steps = nlohmann::json::object();
-    for (const auto& [robot, bytes] : r.bytes_by_robot) by_robot[std::to_string(robot)] = bytes;
-    for (const auto& [robot, n] : r.iterations_by_robot) steps[std::to_string(robot)] = n;
-    j["bytes_between_robots"]["by_robot"] = by_robot;
-    j["iterations_by_robot"] = steps;
-    if (r.report) {
-        j["lambda_min"] = report.lambda_min();
-        // Only a bound the report carries (a zero field is an absent one, not a proof of f*).
-        if (certified && report.suboptimality_bound() > 0.0) {
-            j["suboptimality_bound"] = report.suboptimality_bound();
-        }
-    }
-    if (!r.done) j["reason"] = "not certified before the timeout";
-    return j;
 }
 
 void PrintText(const nlohmann::json& j) {
@@ -81,6 +36,44 @@ void PrintText(const nlohmann::json& j) {
 
 }  // namespace
 
+nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots) {
+    const v1::CertificateReport report = r.report.value_or(v1::CertificateReport{});
+    const bool certified = r.done && report.verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
+    nlohmann::json j = {{"schema_version", kSchemaVersion},
+                        {"method", "rbcd"},
+                        {"path", "distributed"},
+                        {"transport", "inproc"},
+                        {"objective", report.objective()},
+                        {"cost", report.objective()},
+                        {"certified", certified},
+                        {"verdict", VerdictName(report.verdict())},
+                        {"certificate_path", CertificatePathName(report.path())},
+                        {"rank", r.rank},
+                        {"iterations", r.iterations},
+                        {"seconds", r.seconds},
+                        {"certificate_rounds", r.certificate_rounds},
+                        {"lanczos_steps", r.lanczos_steps},
+                        {"escapes", r.escapes},
+                        {"bytes_between_robots",
+                         {{"total", r.bytes_between_robots}, {"by_actor", r.bytes_by_actor}}},
+                        {"peak_rss_mb", PeakRssMb()},
+                        {"robots", robots}};
+    nlohmann::json by_robot = nlohmann::json::object(), steps = nlohmann::json::object();
+    for (const auto& [robot, bytes] : r.bytes_by_robot) by_robot[std::to_string(robot)] = bytes;
+    for (const auto& [robot, n] : r.iterations_by_robot) steps[std::to_string(robot)] = n;
+    j["bytes_between_robots"]["by_robot"] = by_robot;
+    j["iterations_by_robot"] = steps;
+    if (r.report) {
+        j["lambda_min"] = report.lambda_min();
+        // Only a bound the report carries (a zero field is an absent one, not a proof of f*).
+        if (certified && report.suboptimality_bound() > 0.0) {
+            j["suboptimality_bound"] = report.suboptimality_bound();
+        }
+    }
+    if (!r.done) j["reason"] = "not certified before the timeout";
+    return j;
+}
+
 int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOptions& o) {
     std::vector<slam::RobotGraph> graphs;
     try {
@@ -97,7 +90,11 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
     config.quiet = kQuiet;
     const actors::PoseGraphTeamResult result =
         actors::RunPoseGraphTeam(graphs, config, std::chrono::duration<double>(o.timeout_s));
-    const nlohmann::json j = ToJson(o, graph, static_cast<int>(graphs.size()), result);
+    nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));
+    j["file"] = o.file;
+    j["poses"] = graph.n;
+    j["edges"] = static_cast<int>(graph.edges.size());
+    j["quiet_seconds"] = std::chrono::duration<double>(kQuiet).count();
     if (o.json) {
         std::printf("%s\n", j.dump(2).c_str());
     } else {

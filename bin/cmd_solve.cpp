@@ -126,9 +126,8 @@ slam::PoseGraphReadResult Read(const std::string& path) {
     return slam::ReadG2o(path);
 }
 
-int RunSolve(int argc, char** argv) {
-    SolveOptions o;
-    CLI::App app{"Certifiably optimal pose-graph optimisation (RBCD + dual certificate)"};
+/// The options of `solve` into `o`.
+void AddOptions(CLI::App& app, SolveOptions& o) {
     app.option_defaults()->always_capture_default();
     app.add_option("file", o.file, "g2o file, or a multi-robot CSV directory")->required();
     app.add_option("--robots", o.robots,
@@ -147,11 +146,17 @@ int RunSolve(int argc, char** argv) {
                  "each robot its own solver and certifier actors over inproc sockets (3D graphs)");
     app.add_option("--timeout", o.timeout_s, "--distributed: give up after this many seconds")
         ->check(CLI::PositiveNumber);
+}
+
+int RunSolve(int argc, char** argv) {
+    SolveOptions o;
+    CLI::App app{"Certifiably optimal pose-graph optimisation (RBCD + dual certificate)"};
+    AddOptions(app, o);
     CLI11_PARSE(app, argc, argv);
     if (o.distributed && (o.method != "rbcd" || o.robust || o.rank > 0 || !o.out.empty())) {
         std::fprintf(stderr,
-                     "certislam solve: error: --distributed runs RBCD alone (no --method lm, "
-                     "--robust, --rank or --out)\n");
+                     "certislam solve: error: --distributed: no --method lm, --robust, "
+                     "--rank or --out\n");
         return kExitUsage;
     }
 

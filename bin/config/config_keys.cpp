@@ -313,6 +313,11 @@ std::vector<ConfigKey> SourceKeys() {
             "source.offset.rpy_deg",
             [](TeamConfig & c, int) -> auto& { return c.source.offset_rpy_deg; },
             "rotation of the offset: roll, pitch, yaw in degrees", "split"),
+    };
+}
+
+std::vector<ConfigKey> PoseGraphSourceKeys() {
+    return {
         FilePath(
             "source.graph", [](TeamConfig & c, int) -> auto& { return c.source.graph_path; },
             "the team's pose graph: a 3D g2o file or a dpgo CSV folder (robot<k>/)", "pose_graph"),
@@ -463,8 +468,8 @@ std::vector<ConfigKey> MappingAndNetworkKeys() {
 const std::vector<ConfigKey>& TeamConfigKeys() {
     static const std::vector<ConfigKey> keys = [] {
         std::vector<ConfigKey> all;
-        for (auto part : {TopKeys(), SourceKeys(), SolverAndCertifierKeys(), MatcherKeys(),
-                          MappingAndNetworkKeys()}) {
+        for (auto part : {TopKeys(), SourceKeys(), PoseGraphSourceKeys(), SolverAndCertifierKeys(),
+                          MatcherKeys(), MappingAndNetworkKeys()}) {
             for (auto& key : part) all.push_back(std::move(key));
         }
         return all;

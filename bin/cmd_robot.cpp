@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "actors/pose_graph_node.h"
 #include "bin/command.h"
 #include "bin/config/team_config.h"
 #include "bin/demo/demo_output.h"

@@ -115,4 +115,29 @@ TEST(RunPoseGraph, BadRangesFailNamingTheKeyPath) {
     }
 }
 
+TEST(RobotPoseGraph, TwoProcessesOverTcpCertifyTheInProcessOptimum) {
+    const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --quiet");
+    const std::string config = Write("tcp.yaml",
+                                     "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
+                                     "  graph: " +
+                                         Data("smallGrid3D.g2o") +
+                                         "\nnetwork:\n"
+                                         "  0: {host: 127.0.0.1, base_port: 27710}\n"
+                                         "  1: {host: 127.0.0.1, base_port: 27810}\n");
+    const std::string robot = std::string(CERTISLAM_BINARY) + " robot " + config;
+    const std::string out1 = Write("robot1.json", "");
+    const ShellResult r0 = Shell(robot + " --id 1 --json --timeout 120 > " + out1 + " 2>&1 & " +
+                                 robot + " --id 0 --json --timeout 120 2>&1; wait");
+    std::ifstream in(out1);
+    const std::string text1((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (const auto& text : {r0.out, text1}) {
+        const auto j = nlohmann::json::parse(text, nullptr, false);
+        ASSERT_FALSE(j.is_discarded()) << text;
+        EXPECT_EQ(j["path"], "distributed");
+        EXPECT_EQ(j["verdict"], "certified");
+        EXPECT_LE(RelDiff(j["cost"].get<double>(), central["cost"].get<double>()), kRelCost);
+        EXPECT_GT(j["bytes_sent"].get<std::uint64_t>(), 0u);
+    }
+}
+
 }  // namespace

@@ -15,6 +15,7 @@ PoseGraphNode::PoseGraphNode(zmq::context_t& context, const TeamWiring& wiring,
                              slam::RobotGraph graph, PoseGraphNodeConfig config)
     : robot_(wiring.robot), config_(std::move(config)) {
     config_.solver.solver.odometry_edges = false;  // every edge comes from the file
+    config_.solver.rebroadcast_loops = false;      // PoseGraphActor re-sends to late joiners
     config_.Validate();
     certifier_ = std::make_unique<CertifierActor>(context, wiring, config_.certifier);
     solver_ = std::make_unique<SolverActor>(context, wiring, config_.solver);

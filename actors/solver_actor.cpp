@@ -214,7 +214,8 @@ void SolverActor::Publish() {
 void SolverActor::Heartbeat() {
     if (state_.NumPoses() == 0) return;
     Publish();
-    for (const auto& loop : state_.InterRobotLoops()) {
+    for (const auto& loop :
+         config_.rebroadcast_loops ? state_.InterRobotLoops() : std::vector<slam::LoopClosure>{}) {
         auto proto = ToProto(loop);  // late or restarted peers learn the loops they missed
         *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
         Send(*poses_out_, transport::Pack(proto), true);

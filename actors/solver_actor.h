@@ -34,6 +34,10 @@ struct SolverActorConfig {
     std::chrono::milliseconds publish_period{0};
     std::string log_path;      ///< durable log of accepted loop closures (replayed); empty: none
     std::string log_identity;  ///< the mission identity written in a new log's header
+    /// Inter-robot loops re-sent with every heartbeat (late or restarted peers learn the ones
+    /// they missed); false where the source itself re-sends them to late subscribers (a pose
+    /// graph's robot, whose hundreds of inter-robot edges would flood the peers' queues).
+    bool rebroadcast_loops = true;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;

@@ -10,13 +10,64 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "actors/pose_graph_node.h"
 #include "bin/command.h"
 #include "bin/config/team_config.h"
 #include "bin/stop_within.h"
+#include "bin/verdict.h"
 #include "transport/curve.h"
 
 namespace certislam::bin {
 namespace {
+
+/// source.kind pose_graph: this robot's block of the graph, its solver and certifier; peers over
+/// the wiring. Prints this robot's report; returns the exit code.
+int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
+                      const TeamConfig& config, int id, double timeout_s, bool json) {
+    const auto graphs = LoadPoseGraphSource(config.path, config.source, config.robots);
+    const actors::RobotNodeConfig own = NodeConfigFor(config, id);
+    actors::PoseGraphNodeConfig node_config;
+    node_config.solver = own.solver;
+    node_config.certifier = own.certifier;
+    node_config.quiet = own.quiet;
+    const auto start = std::chrono::steady_clock::now();
+    actors::PoseGraphNode node(context, wiring, graphs.at(static_cast<size_t>(id)), node_config);
+    node.Start();
+    bool done = false;
+    while (!done &&
+           std::chrono::steady_clock::now() - start < std::chrono::duration<double>(timeout_s)) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        done = node.Done();
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const actors::SolverSnapshot s = node.Snapshot();
+    const auto bytes = node.BytesSentToPeersByActor();
+    node.Stop();
+    const v1::CertificateReport report = s.report.value_or(v1::CertificateReport{});
+    std::uint64_t total = 0;
+    for (const auto& [actor, n] : bytes) total += n;
+    const nlohmann::json j = {{"schema_version", kSchemaVersion},
+                              {"robot", id},
+                              {"path", "distributed"},
+                              {"cost", report.objective()},
+                              {"verdict", VerdictName(report.verdict())},
+                              {"certified", done},
+                              {"iterations", s.steps},
+                              {"seconds", seconds},
+                              {"bytes_sent", total},
+                              {"bytes_sent_by_actor", bytes},
+                              {"certificate_rounds", node.Certifier().Rounds()},
+                              {"lanczos_steps", node.Certifier().LanczosSteps()}};
+    if (json) {
+        std::printf("%s\n", j.dump(2).c_str());
+    } else {
+        std::printf("robot %d   objective %.10g   verdict: %s   iterations %llu   %.3f s\n", id,
+                    report.objective(), VerdictName(report.verdict()).c_str(),
+                    static_cast<unsigned long long>(s.steps), seconds);
+    }
+    return done ? kExitDone : kExitNotCertified;
+}
 
 int RunRobot(int argc, char** argv) {
     CLI::App app{"One robot of a configuration; peers over tcp (CURVE with keys)"};
@@ -47,6 +98,9 @@ int RunRobot(int argc, char** argv) {
             std::map<std::string, std::uint32_t> allowed;
             for (const auto& [robot, key] : wiring.public_keys) allowed[key] = robot;
             zap = std::make_unique<transport::ZapAuthenticator>(context, allowed);
+        }
+        if (config.source.kind == SourceConfig::Kind::kPoseGraph) {
+            return RunPoseGraphRobot(context, wiring, config, id, timeout_s, json);
         }
         const actors::RobotNodeConfig node_config = NodeConfigFor(config, id);
         actors::RobotNode node(context, wiring, source.For(id), node_config);

@@ -9,10 +9,32 @@
 
 #include "bin/command.h"
 #include "bin/config/team_config.h"
+#include "bin/solve_distributed.h"
 #include "bin/stop_within.h"
 
 namespace certislam::bin {
 namespace {
+
+/// source.kind pose_graph: each robot its block of the graph, solver and certifier (no front end).
+int RunPoseGraph(const TeamConfig& config, double timeout_s, bool json) {
+    const auto graphs = LoadPoseGraphSource(config.path, config.source, config.robots);
+    actors::PoseGraphNodeConfig node;
+    node.solver = config.node.solver;
+    node.certifier = config.node.certifier;
+    node.quiet = config.node.quiet;
+    const auto result =
+        actors::RunPoseGraphTeam(graphs, node, std::chrono::duration<double>(timeout_s));
+    nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));
+    j["graph"] = config.source.graph_path;
+    if (json) {
+        std::printf("%s\n", j.dump(2).c_str());
+    } else {
+        std::printf("objective %.10g   verdict: %s   team iterations %llu   %.3f s\n",
+                    j["cost"].get<double>(), j["verdict"].get<std::string>().c_str(),
+                    j["iterations"].get<unsigned long long>(), j["seconds"].get<double>());
+    }
+    return j["certified"].get<bool>() ? kExitDone : kExitNotCertified;
+}
 
 int RunRun(int argc, char** argv) {
     CLI::App app{"All robots of a configuration in one process, over inproc"};
@@ -32,6 +54,9 @@ int RunRun(int argc, char** argv) {
     const auto start = std::chrono::steady_clock::now();
     try {
         const TeamConfig config = LoadTeamConfig(config_path);
+        if (config.source.kind == SourceConfig::Kind::kPoseGraph) {
+            return RunPoseGraph(config, timeout_s, json);
+        }
         const TeamSource source(config.source, config.robots);
         zmq::context_t context;
         std::vector<std::unique_ptr<actors::RobotNode>> nodes;

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "bin/command.h"
+#include "bin/solve_distributed.h"
 #include "bin/solve_output.h"
 #include "bin/verdict.h"
 #include "certify/pose_graph_solver.h"
@@ -30,6 +31,8 @@ struct SolveOptions {
     std::string out;
     bool json = false;
     bool quiet = false;
+    bool distributed = false;
+    double timeout_s = 600.0;
 };
 
 double PeakRssMb() {
@@ -52,6 +55,7 @@ nlohmann::json ToJson(const SolveOptions& o, const slam::PoseGraph& graph, int r
         {"schema_version", kSchemaVersion},
         {"file", o.file},
         {"method", o.method},
+        {"path", "in_process"},
         {"objective", r.cost},
         {"cost", r.cost},
         {"certified", r.status == certify::PoseGraphSolverResult::Status::kCertified},
@@ -122,9 +126,8 @@ slam::PoseGraphReadResult Read(const std::string& path) {
     return slam::ReadG2o(path);
 }
 
-int RunSolve(int argc, char** argv) {
-    SolveOptions o;
-    CLI::App app{"Certifiably optimal pose-graph optimisation (RBCD + dual certificate)"};
+/// The options of `solve` into `o`.
+void AddOptions(CLI::App& app, SolveOptions& o) {
     app.option_defaults()->always_capture_default();
     app.add_option("file", o.file, "g2o file, or a multi-robot CSV directory")->required();
     app.add_option("--robots", o.robots,
@@ -139,7 +142,23 @@ int RunSolve(int argc, char** argv) {
                    "write the solution (.g2o, .tum or .kitti; pose 0 where the input has it)");
     app.add_flag("--json", o.json, "print one JSON object on stdout");
     app.add_flag("--quiet", o.quiet, "no progress lines on stderr");
+    app.add_flag("--distributed", o.distributed,
+                 "each robot its own solver and certifier actors over inproc sockets (3D graphs)");
+    app.add_option("--timeout", o.timeout_s, "--distributed: give up after this many seconds")
+        ->check(CLI::PositiveNumber);
+}
+
+int RunSolve(int argc, char** argv) {
+    SolveOptions o;
+    CLI::App app{"Certifiably optimal pose-graph optimisation (RBCD + dual certificate)"};
+    AddOptions(app, o);
     CLI11_PARSE(app, argc, argv);
+    if (o.distributed && (o.method != "rbcd" || o.robust || o.rank > 0 || !o.out.empty())) {
+        std::fprintf(stderr,
+                     "certislam solve: error: --distributed: no --method lm, --robust, "
+                     "--rank or --out\n");
+        return kExitUsage;
+    }
 
     if (!o.out.empty() && !SolutionFormatError(o.out).empty()) {
         std::fprintf(stderr, "certislam solve: error: %s\n", SolutionFormatError(o.out).c_str());
@@ -151,6 +170,9 @@ int RunSolve(int argc, char** argv) {
         return 1;
     }
     const slam::PoseGraph& graph = read.graph;
+    if (o.distributed) {
+        return RunDistributedSolve(graph, {o.file, o.robots, o.timeout_s, o.json});
+    }
     certify::PoseGraphSolverConfig config;
     config.method = o.method == "lm" ? certify::PoseGraphSolverConfig::Method::kLm
                                      : certify::PoseGraphSolverConfig::Method::kRbcd;

@@ -216,8 +216,8 @@ ConfigKey RobotList() {
 }  // namespace
 
 const std::vector<std::string>& SourceKindNames() {
-    static const std::vector<std::string> names{"simulator", "keyframe_folder", "kitti", "split",
-                                                "rosbag"};
+    static const std::vector<std::string> names{"simulator", "keyframe_folder", "kitti",
+                                                "split",     "rosbag",          "pose_graph"};
     return names;
 }
 
@@ -252,7 +252,8 @@ std::vector<ConfigKey> SourceKeys() {
              {"keyframe_folder", Kind::kKeyframeFolder},
              {"kitti", Kind::kKitti},
              {"split", Kind::kSplit},
-             {"rosbag", Kind::kRosbag}},
+             {"rosbag", Kind::kRosbag},
+             {"pose_graph", Kind::kPoseGraph}},
             "where the keyframes come from"),
         Num<int>(
             "source.max_keyframes",
@@ -318,6 +319,23 @@ std::vector<ConfigKey> SourceKeys() {
             "source.offset.rpy_deg",
             [](TeamConfig & c, int) -> auto& { return c.source.offset_rpy_deg; },
             "rotation of the offset: roll, pitch, yaw in degrees", "split"),
+    };
+}
+
+std::vector<ConfigKey> PoseGraphSourceKeys() {
+    return {
+        FilePath(
+            "source.graph", [](TeamConfig & c, int) -> auto& { return c.source.graph_path; },
+            "the team's pose graph: a 3D g2o file or a dpgo CSV folder (robot<k>/)", "pose_graph"),
+        Num<int>(
+            "source.ranges.<robot>.begin",
+            [](TeamConfig & c, int r) -> auto& { return c.source.ranges[r].first; }, non_negative,
+            "first g2o vertex of the robot (all ranges zero: dpgo's contiguous split)",
+            "pose_graph"),
+        Num<int>(
+            "source.ranges.<robot>.end",
+            [](TeamConfig & c, int r) -> auto& { return c.source.ranges[r].second; }, non_negative,
+            "one past the robot's last g2o vertex", "pose_graph"),
     };
 }
 
@@ -462,8 +480,8 @@ std::vector<ConfigKey> MappingAndNetworkKeys() {
 const std::vector<ConfigKey>& TeamConfigKeys() {
     static const std::vector<ConfigKey> keys = [] {
         std::vector<ConfigKey> all;
-        for (auto part : {TopKeys(), SourceKeys(), SolverAndCertifierKeys(), MatcherKeys(),
-                          MappingAndNetworkKeys()}) {
+        for (auto part : {TopKeys(), SourceKeys(), PoseGraphSourceKeys(), SolverAndCertifierKeys(),
+                          MatcherKeys(), MappingAndNetworkKeys()}) {
             for (auto& key : part) all.push_back(std::move(key));
         }
         return all;

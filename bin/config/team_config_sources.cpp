@@ -1,11 +1,14 @@
 // Team keyframe sources: the `source` configuration, the readers behind it, ground truth.
 #include "bin/config/team_config_sources.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <stdexcept>
 
+#include "slam/io/g2o_io.h"
 #include "slam/io/keyframe_sources_io.h"
+#include "slam/io/multirobot_io.h"
 #include "slam/io/rosbag/rosbag_source_io.h"
 
 namespace certislam::bin {
@@ -45,7 +48,87 @@ Eigen::Isometry3d Offset(const Eigen::Vector3d& xyz, const Eigen::Vector3d& rpy_
     return T;
 }
 
+bool HasRanges(const SourceConfig& config) {
+    return std::any_of(config.ranges.begin(), config.ranges.end(), [](const auto& entry) {
+        return entry.second != std::pair{0, 0};
+    });
+}
+
+/// source.ranges: one per robot, in robot order, each starting where the previous one ends.
+void CheckRanges(const std::string& config_path, const std::vector<int>& robots,
+                 const SourceConfig& config) {
+    OnePerRobot(config.ranges, "ranges", config_path, robots);
+    int end = 0;
+    for (const int r : robots) {
+        const auto [begin, stop] = config.ranges.at(r);
+        const std::string key = "ranges." + std::to_string(r);
+        if (begin < end) {
+            throw FieldError(config_path, key + ".begin",
+                             std::to_string(begin) + " overlaps robot " + std::to_string(r - 1) +
+                                 "'s range, which ends at " + std::to_string(end));
+        }
+        if (begin > end) {
+            throw FieldError(config_path, key + ".begin",
+                             std::to_string(begin) + " leaves vertices [" + std::to_string(end) +
+                                 ", " + std::to_string(begin) + ") to no robot");
+        }
+        if (stop <= begin) {
+            throw FieldError(config_path, key + ".end",
+                             std::to_string(stop) + ": must be > begin = " + std::to_string(begin));
+        }
+        end = stop;
+    }
+}
+
+/// The partition of a g2o file's n vertices by source.ranges (checked by CheckRanges).
+slam::Partition RangePartition(const std::string& config_path, const std::vector<int>& robots,
+                               const SourceConfig& config, int n) {
+    slam::Partition partition;
+    for (const int r : robots) partition.begin.push_back(config.ranges.at(r).first);
+    const int end = config.ranges.at(robots.back()).second;
+    const std::string key = "ranges." + std::to_string(robots.back()) + ".end";
+    if (end != n) {
+        throw FieldError(config_path, key,
+                         std::to_string(end) +
+                             (end > n ? " is beyond" : " ends before the end of") +
+                             " the graph's " + std::to_string(n) + " vertices");
+    }
+    partition.begin.push_back(n);
+    return partition;
+}
+
 }  // namespace
+
+std::vector<slam::RobotGraph> LoadPoseGraphSource(const std::string& config_path,
+                                                  const SourceConfig& config,
+                                                  const std::vector<int>& robots) {
+    const bool folder = std::filesystem::is_directory(config.graph_path);
+    const auto read =
+        folder ? slam::ReadMultiRobotCsv(config.graph_path) : slam::ReadG2o(config.graph_path);
+    if (!read.ok()) throw std::runtime_error(read.error);
+    slam::Partition partition;
+    try {
+        if (folder) {
+            if (HasRanges(config)) {
+                throw FieldError(config_path, "ranges",
+                                 "only for a g2o file (a folder has robots)");
+            }
+            partition = slam::PartitionFromIds(read.graph);
+            if (partition.num_robots() != static_cast<int>(robots.size())) {
+                throw FieldError(config_path, "graph",
+                                 "the folder holds " + std::to_string(partition.num_robots()) +
+                                     " robots, the team " + std::to_string(robots.size()));
+            }
+        } else if (HasRanges(config)) {
+            partition = RangePartition(config_path, robots, config, read.graph.n);
+        } else {
+            partition = slam::ContiguousPartition(read.graph.n, static_cast<int>(robots.size()));
+        }
+        return slam::SplitGraph(read.graph, partition);
+    } catch (const std::invalid_argument& e) {
+        throw std::runtime_error(config.graph_path + ": " + e.what());
+    }
+}
 
 void FinishSourceConfig(const std::string& config_path, const std::vector<int>& robots,
                         SourceConfig* config) {
@@ -80,6 +163,10 @@ void FinishSourceConfig(const std::string& config_path, const std::vector<int>& 
             throw FieldError(config_path, "robots", "must equal the team's size");
         }
         config->T_offset_world = Offset(config->offset_xyz_m, config->offset_rpy_deg);
+    }
+    if (config->kind == Kind::kPoseGraph) {
+        non_empty(config->graph_path, "graph");
+        if (HasRanges(*config)) CheckRanges(config_path, robots, *config);
     }
     config->simulator.num_robots = static_cast<int>(robots.size());
 }
@@ -154,6 +241,7 @@ void TeamSource::Load(const SourceConfig& config, const std::vector<int>& robots
             truth_kind_ = "the bag's odometry (LIO-SAM estimates, each robot in its own frame)";
             break;
         case SourceConfig::Kind::kSimulator:
+        case SourceConfig::Kind::kPoseGraph:  // no keyframes: LoadPoseGraphSource
             break;
     }
     for (auto& [r, keyframes] : recorded_) {

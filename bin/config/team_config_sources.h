@@ -8,9 +8,11 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "actors/ingest_actor.h"
+#include "slam/core/graph_split.h"
 #include "slam/core/keyframe.h"
 #include "slam/core/trajectory.h"
 #include "slam/io/rosbag/rosbag_source_io.h"
@@ -27,7 +29,7 @@ struct KittiSequenceConfig {
 
 /// The `source` part of a team configuration.
 struct SourceConfig {
-    enum class Kind { kSimulator, kKeyframeFolder, kKitti, kSplit, kRosbag };
+    enum class Kind { kSimulator, kKeyframeFolder, kKitti, kSplit, kRosbag, kPoseGraph };
     Kind kind = Kind::kSimulator;              ///< which reader
     slam::SimulatorConfig simulator;           ///< kSimulator: the mission
     int max_keyframes = 0;                     ///< per robot at most (0: all), >= 0
@@ -39,6 +41,9 @@ struct SourceConfig {
     int split_robots = 0;                      ///< kSplit: robots the folder is split into
     Eigen::Vector3d offset_xyz_m = Eigen::Vector3d::Zero();    ///< kSplit: offset translation
     Eigen::Vector3d offset_rpy_deg = Eigen::Vector3d::Zero();  ///< kSplit: offset roll pitch yaw
+    std::string graph_path;  ///< kPoseGraph: a g2o file (3D) or a dpgo CSV folder
+    /// kPoseGraph, g2o file: robot -> vertices [begin, end) it owns; all zero: dpgo's split.
+    std::map<int, std::pair<int, int>> ranges;
     Eigen::Isometry3d T_offset_world =
         Eigen::Isometry3d::Identity();  ///< kSplit: robot r > 0's
                                         ///< odometry frame is the world moved by this^r
@@ -49,6 +54,13 @@ struct SourceConfig {
 /// size). Throws std::runtime_error naming "source.<field>" and the rule.
 void FinishSourceConfig(const std::string& config_path, const std::vector<int>& robots,
                         SourceConfig* config);
+
+/// kPoseGraph: the graph of `config.graph_path` split into the team's robots (by
+/// `config.ranges` when given, else dpgo's contiguous split, or a CSV folder's own robots).
+/// Throws std::runtime_error naming the file (and line) or "CONFIG: source.<key>" and the rule.
+std::vector<slam::RobotGraph> LoadPoseGraphSource(const std::string& config_path,
+                                                  const SourceConfig& config,
+                                                  const std::vector<int>& robots);
 
 /// Each robot's keyframes, and the ground truth where the source has it.
 class TeamSource {

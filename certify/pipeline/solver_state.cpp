@@ -149,7 +149,7 @@ struct SolverState::Impl {
             graph.ids.push_back(local_nbr[k]);
             local[local_nbr[k]] = n() + static_cast<int>(k);
         }
-        for (int k = 0; k + 1 < n(); ++k) {
+        for (int k = 0; config.odometry_edges && k + 1 < n(); ++k) {
             auto e = slam::MeasurementOf(k, k + 1, odom[k].inverse() * odom[k + 1], OdomKappa(),
                                          OdomTau());
             e.is_known_inlier = true;
@@ -192,7 +192,7 @@ struct SolverState::Impl {
                    tau * (Xj.col(3) - Xi.col(3) - Yi * T.translation()).squaredNorm();
         };
         double f = 0.0;
-        for (int k = 0; k + 1 < n(); ++k) {
+        for (int k = 0; config.odometry_edges && k + 1 < n(); ++k) {
             f += term(OwnPose(k), OwnPose(k + 1), odom[k].inverse() * odom[k + 1], OdomKappa(),
                       OdomTau());
         }
@@ -364,7 +364,7 @@ std::vector<slam::LoopClosure> SolverState::InterRobotLoops() const {
 std::vector<slam::LoopClosure> SolverState::OwnEdges() const {
     const Impl& m = *impl_;
     std::vector<slam::LoopClosure> out;
-    for (int k = 0; k + 1 < m.n(); ++k) {
+    for (int k = 0; m.config.odometry_edges && k + 1 < m.n(); ++k) {
         slam::LoopClosure e;
         e.a = {m.robot, k};
         e.b = {m.robot, k + 1};

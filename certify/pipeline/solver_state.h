@@ -33,6 +33,10 @@ struct SolverConfig {
     int rank = 5;           ///< relaxation rank r, >= 3
     EdgeNoiseConfig noise;  ///< odometry edge weights (loops carry their own)
     slam::RbcdConfig rbcd;  ///< block trust-region settings (rel_grad_tol used)
+    /// True: consecutive keyframes are joined by an odometry edge weighted by `noise` (a LiDAR
+    /// front end). False: keyframe poses are initial guesses only and every edge, odometry
+    /// included, arrives as a loop closure with its own weights (a pose-graph file's robot).
+    bool odometry_edges = true;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;

@@ -1,0 +1,64 @@
+// A pose-graph team in one process: nodes over inproc, watched until done.
+#include "actors/pose_graph_team.h"
+
+#include <algorithm>
+#include <memory>
+#include <thread>
+
+namespace certislam::actors {
+namespace {
+
+constexpr std::chrono::milliseconds kWatchPeriod{20};
+
+PoseGraphTeamResult Summarise(const std::vector<std::unique_ptr<PoseGraphNode>>& nodes) {
+    PoseGraphTeamResult out;
+    for (const auto& node : nodes) {
+        const SolverSnapshot s = node->Snapshot();
+        out.iterations_by_robot[node->robot()] = s.steps;
+        out.iterations = std::max(out.iterations, s.steps);
+        for (const auto& [actor, bytes] : node->BytesSentToPeersByActor()) {
+            out.bytes_by_actor[actor] += bytes;
+            out.bytes_by_robot[node->robot()] += bytes;
+            out.bytes_between_robots += bytes;
+        }
+        out.escapes += node->Certifier().Escapes();
+    }
+    const PoseGraphNode& anchor = *nodes.front();
+    const SolverSnapshot s = anchor.Snapshot();
+    out.report = s.report;
+    out.rank = s.rank;
+    out.certificate_rounds = anchor.Certifier().Rounds();
+    out.lanczos_steps = anchor.Certifier().LanczosSteps();
+    return out;
+}
+
+}  // namespace
+
+PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs,
+                                     const PoseGraphNodeConfig& config,
+                                     std::chrono::duration<double> timeout) {
+    std::vector<int> robots;
+    for (const auto& g : graphs) robots.push_back(g.robot);
+    zmq::context_t context;
+    std::vector<std::unique_ptr<PoseGraphNode>> nodes;
+    for (const auto& g : graphs) {
+        nodes.push_back(
+            std::make_unique<PoseGraphNode>(context, InprocWiring(g.robot, robots), g, config));
+    }
+    const auto start = std::chrono::steady_clock::now();
+    for (auto& node : nodes) node->Start();
+    bool done = false;
+    while (!done && std::chrono::steady_clock::now() - start < timeout) {
+        std::this_thread::sleep_for(kWatchPeriod);
+        done = std::all_of(nodes.begin(), nodes.end(), [](const auto& n) { return n->Done(); });
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    PoseGraphTeamResult out = Summarise(nodes);
+    out.done = done;
+    out.seconds = seconds;
+    for (auto& node : nodes) node->Stop();
+    return out;
+}
+
+}  // namespace certislam::actors

@@ -1,0 +1,41 @@
+// A whole team of pose-graph robots in one process over inproc: each robot its own source,
+// solver and certifier actors on real sockets; runs until every robot is done (certified and
+// quiet) or a timeout, and says what it cost (team rounds, bytes between robots, certificate).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "actors/pose_graph_node.h"
+#include "certislam/v1/certificate.pb.h"
+#include "slam/core/graph_split.h"
+
+namespace certislam::actors {
+
+/// What a pose-graph team run gave.
+struct PoseGraphTeamResult {
+    bool done = false;  ///< every robot certified and quiet before the timeout
+    std::optional<v1::CertificateReport> report;  ///< last certificate robot 0's solver heard
+    std::uint64_t iterations = 0;  ///< team rounds: the most block updates of any robot
+    std::map<int, std::uint64_t> iterations_by_robot;     ///< block updates per robot
+    std::uint64_t bytes_between_robots = 0;               ///< every actor's bytes to peers
+    std::map<std::string, std::uint64_t> bytes_by_actor;  ///< summed over robots
+    std::map<int, std::uint64_t> bytes_by_robot;          ///< summed over actors
+    double seconds = 0.0;                                 ///< wall time, start to done
+    int certificate_rounds = 0;       ///< distributed rounds robot 0's certifier finished
+    std::uint64_t lanczos_steps = 0;  ///< S v products of those rounds (robot 0's count)
+    int escapes = 0;                  ///< saddle escapes sent (anchor)
+    int rank = 0;                     ///< robot 0's relaxation rank at the end
+};
+
+/// Runs `graphs` (robot k = graphs[k].robot, ascending from 0) in one process over inproc until
+/// all are done or `timeout` passes.
+PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs,
+                                     const PoseGraphNodeConfig& config,
+                                     std::chrono::duration<double> timeout);
+
+}  // namespace certislam::actors

@@ -1,0 +1,106 @@
+// The distributed solve: split, run the team of actors, report.
+#include "bin/solve_distributed.h"
+
+#include <sys/resource.h>
+
+#include <cstdio>
+#include <stdexcept>
+
+#include "bin/command.h"
+#include "bin/verdict.h"
+#include "slam/core/graph_split.h"
+
+namespace certislam::bin {
+namespace {
+
+constexpr std::chrono::milliseconds kQuiet{300};  ///< done: certified and unchanged this long
+
+double PeakRssMb() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    return static_cast<double>(usage.ru_maxrss) / 1024.0;  // KiB on Linux
+}
+
+void PrintText(const nlohmann::json& j) {
+    std::printf("poses %d   edges %d   robots %d   path distributed (inproc)\n",
+                j["poses"].get<int>(), j["edges"].get<int>(), j["robots"].get<int>());
+    std::printf("objective %.10g   verdict: %s\n", j["cost"].get<double>(),
+                j["verdict"].get<std::string>().c_str());
+    std::printf("team iterations %llu   certificate rounds %d   Lanczos steps %llu\n",
+                j["iterations"].get<unsigned long long>(), j["certificate_rounds"].get<int>(),
+                j["lanczos_steps"].get<unsigned long long>());
+    std::printf("bytes between robots %llu   %.3f s   peak RSS %.1f MB\n",
+                j["bytes_between_robots"]["total"].get<unsigned long long>(),
+                j["seconds"].get<double>(), j["peak_rss_mb"].get<double>());
+}
+
+}  // namespace
+
+nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots) {
+    const v1::CertificateReport report = r.report.value_or(v1::CertificateReport{});
+    const bool certified = r.done && report.verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
+    nlohmann::json j = {{"schema_version", kSchemaVersion},
+                        {"method", "rbcd"},
+                        {"path", "distributed"},
+                        {"transport", "inproc"},
+                        {"objective", report.objective()},
+                        {"cost", report.objective()},
+                        {"certified", certified},
+                        {"verdict", VerdictName(report.verdict())},
+                        {"certificate_path", CertificatePathName(report.path())},
+                        {"rank", r.rank},
+                        {"iterations", r.iterations},
+                        {"seconds", r.seconds},
+                        {"certificate_rounds", r.certificate_rounds},
+                        {"lanczos_steps", r.lanczos_steps},
+                        {"escapes", r.escapes},
+                        {"bytes_between_robots",
+                         {{"total", r.bytes_between_robots}, {"by_actor", r.bytes_by_actor}}},
+                        {"peak_rss_mb", PeakRssMb()},
+                        {"robots", robots}};
+    nlohmann::json by_robot = nlohmann::json::object(), steps = nlohmann::json::object();
+    for (const auto& [robot, bytes] : r.bytes_by_robot) by_robot[std::to_string(robot)] = bytes;
+    for (const auto& [robot, n] : r.iterations_by_robot) steps[std::to_string(robot)] = n;
+    j["bytes_between_robots"]["by_robot"] = by_robot;
+    j["iterations_by_robot"] = steps;
+    if (r.report) {
+        j["lambda_min"] = report.lambda_min();
+        // Only a bound the report carries (a zero field is an absent one, not a proof of f*).
+        if (certified && report.suboptimality_bound() > 0.0) {
+            j["suboptimality_bound"] = report.suboptimality_bound();
+        }
+    }
+    if (!r.done) j["reason"] = "not certified before the timeout";
+    return j;
+}
+
+int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOptions& o) {
+    std::vector<slam::RobotGraph> graphs;
+    try {
+        const slam::Partition partition = o.robots > 0
+                                              ? slam::ContiguousPartition(graph.n, o.robots)
+                                              : slam::PartitionFromIds(graph);
+        graphs = slam::SplitGraph(graph, partition);
+    } catch (const std::invalid_argument& e) {
+        std::fprintf(stderr, "certislam solve: error: %s: --distributed: %s\n", o.file.c_str(),
+                     e.what());
+        return kExitBadInput;
+    }
+    actors::PoseGraphNodeConfig config;
+    config.quiet = kQuiet;
+    const actors::PoseGraphTeamResult result =
+        actors::RunPoseGraphTeam(graphs, config, std::chrono::duration<double>(o.timeout_s));
+    nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));
+    j["file"] = o.file;
+    j["poses"] = graph.n;
+    j["edges"] = static_cast<int>(graph.edges.size());
+    j["quiet_seconds"] = std::chrono::duration<double>(kQuiet).count();
+    if (o.json) {
+        std::printf("%s\n", j.dump(2).c_str());
+    } else {
+        PrintText(j);
+    }
+    return j["certified"].get<bool>() ? kExitDone : kExitNotCertified;
+}
+
+}  // namespace certislam::bin

@@ -1,0 +1,29 @@
+// `certislam solve FILE --distributed`: the file's graph split into robots, each robot its own
+// source, solver and certifier actors over real sockets (inproc, one process), and the JSON or
+// text report of that run.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "actors/pose_graph_team.h"
+#include "slam/core/pose_graph.h"
+
+namespace certislam::bin {
+
+/// How the distributed solve runs.
+struct DistributedSolveOptions {
+    std::string file;        ///< the input (for messages and the report)
+    int robots = -1;         ///< contiguous robots; -1: the graph's own robots (`graph.ids`)
+    double timeout_s = 600;  ///< give up (not certified) after this long
+    bool json = false;       ///< one JSON object on stdout
+};
+
+/// The report of a pose-graph team run (cost, verdict, team rounds, bytes between robots by
+/// actor and robot, certificate rounds and Lanczos steps); `"path": "distributed"`.
+nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& result, int robots);
+
+/// Runs the team on `graph`; prints the report; returns the command's exit code.
+int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOptions& options);
+
+}  // namespace certislam::bin

@@ -1,0 +1,102 @@
+// Splitting a pose graph into robots' blocks.
+#include "slam/core/graph_split.h"
+
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace certislam::slam {
+namespace {
+
+Eigen::Isometry3d PoseOf(const RelativePoseMeasurement& e) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = e.R;
+    T.translation() = e.t;
+    return T;
+}
+
+/// Initial guess of every global pose: VERTEX estimates, else the chain g -> g + 1.
+std::vector<Eigen::Isometry3d> InitialPoses(const PoseGraph& graph) {
+    std::vector<Eigen::Isometry3d> out(graph.n, Eigen::Isometry3d::Identity());
+    if (graph.initial_guess) {
+        for (int g = 0; g < graph.n; ++g) {
+            out[g].linear() = graph.initial_guess->block<3, 3>(0, BlockColumn(g, 3));
+            out[g].translation() = graph.initial_guess->block<3, 1>(0, BlockColumn(g, 3) + 3);
+        }
+        return out;
+    }
+    std::vector<std::optional<Eigen::Isometry3d>> step(graph.n);
+    for (const auto& e : graph.edges) {
+        if (e.j == e.i + 1 && !step[e.i]) step[e.i] = PoseOf(e);
+    }
+    for (int g = 1; g < graph.n; ++g) {
+        out[g] = out[g - 1] * step[g - 1].value_or(Eigen::Isometry3d::Identity());
+    }
+    return out;
+}
+
+void CheckInput(const PoseGraph& graph, const Partition& partition) {
+    if (graph.d != 3) {
+        throw std::invalid_argument("the graph is planar (d = 2): only 3D graphs are split");
+    }
+    if (partition.begin.size() < 2 || partition.begin.front() != 0 ||
+        partition.begin.back() != graph.n) {
+        throw std::invalid_argument("the partition must cover poses [0, " +
+                                    std::to_string(graph.n) + ")");
+    }
+    for (size_t k = 0; k + 1 < partition.begin.size(); ++k) {
+        if (partition.begin[k] >= partition.begin[k + 1]) {
+            throw std::invalid_argument("robot " + std::to_string(k) + " owns no pose");
+        }
+    }
+    std::map<std::pair<int, int>, size_t> seen;
+    for (size_t k = 0; k < graph.edges.size(); ++k) {
+        const auto& e = graph.edges[k];
+        const auto ends = std::minmax(e.i, e.j);
+        const auto [it, fresh] = seen.emplace(std::pair{ends.first, ends.second}, k);
+        if (!fresh) {
+            throw std::invalid_argument(
+                "edges " + std::to_string(it->second) + " and " + std::to_string(k) +
+                " (0-based, file order) both join poses " + std::to_string(e.i) + " and " +
+                std::to_string(e.j) + ": a robot's solver keeps one edge per pose pair");
+        }
+    }
+}
+
+}  // namespace
+
+std::vector<RobotGraph> SplitGraph(const PoseGraph& graph, const Partition& partition) {
+    CheckInput(graph, partition);
+    const std::vector<Eigen::Isometry3d> initial = InitialPoses(graph);
+    std::vector<RobotGraph> out(partition.num_robots());
+    const auto id = [&](int g) {
+        const int robot = partition.RobotOf(g);
+        return PoseId{robot, g - partition.begin[robot]};
+    };
+    for (int k = 0; k < partition.num_robots(); ++k) {
+        out[k].robot = k;
+        for (int g = partition.begin[k]; g < partition.begin[k + 1]; ++g) {
+            out[k].initial.push_back(initial[g]);
+        }
+    }
+    for (const auto& e : graph.edges) {
+        LoopClosure l;
+        l.a = id(e.i);
+        l.b = id(e.j);
+        l.T_a_b = PoseOf(e);
+        l.kappa = e.kappa;
+        l.tau = e.tau;
+        l.sc_distance = 0.0;
+        if (!l.inter_robot()) {
+            out[l.a.robot].intra.push_back(l);
+        } else {
+            out[l.a.robot].inter.push_back(l);
+            out[l.b.robot].shared.push_back(l);
+        }
+    }
+    return out;
+}
+
+}  // namespace certislam::slam

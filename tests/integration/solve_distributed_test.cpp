@@ -1,0 +1,143 @@
+// `certislam solve FILE --robots N --distributed` and `certislam run` with source.kind pose_graph:
+// the real command runs each robot's source, solver and certifier actors over inproc sockets and
+// certifies the in-process optimum; bad splits fail naming the file or the key path.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "tests/integration/shell.h"
+
+namespace {
+
+using certislam::testing::Shell;
+using certislam::testing::ShellResult;
+
+/// Distributed vs in-process cost of the file as written: the wire carries unit quaternions, the
+/// files' are within 1e-5 of unit norm (same measurements: 1e-6, test_actors_pose_graph_team).
+constexpr double kRelCost = 1e-5;
+
+std::string Data(const std::string& name) {
+    return std::string(CERTISLAM_DATA_DIR) + "/g2o/" + name;
+}
+
+std::string Write(const std::string& name, const std::string& text) {
+    const auto dir = std::filesystem::temp_directory_path() / "certislam_solve_distributed_test";
+    std::filesystem::create_directories(dir);
+    const auto path = (dir / name).string();
+    std::ofstream(path) << text;
+    return path;
+}
+
+nlohmann::json Json(const std::string& args, int expected_exit = 0) {
+    const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " " + args + " --json 2>&1");
+    EXPECT_EQ(r.exit_code, expected_exit) << args << "\n" << r.out;
+    return nlohmann::json::parse(r.out, nullptr, false);
+}
+
+double RelDiff(double a, double b) { return std::abs(a - b) / std::abs(b); }
+
+TEST(SolveDistributed, TwoAndFiveRobotsCertifyTheInProcessOptimumAndSayWhichPathRan) {
+    for (const auto& [file, robots] : {std::pair{"tinyGrid3D.g2o", 2}, {"smallGrid3D.g2o", 5}}) {
+        const auto central = Json("solve " + Data(file) + " --robots 1 --quiet");
+        const auto team =
+            Json("solve " + Data(file) + " --robots " + std::to_string(robots) + " --distributed");
+        ASSERT_FALSE(team.is_discarded());
+        EXPECT_EQ(central["path"], "in_process");
+        EXPECT_EQ(team["path"], "distributed");
+        EXPECT_EQ(team["verdict"], "certified");
+        EXPECT_TRUE(team["certified"].get<bool>());
+        EXPECT_EQ(team["robots"].get<int>(), robots);
+        EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), kRelCost)
+            << file << ": " << team["cost"] << " vs " << central["cost"];
+        EXPECT_GT(team["iterations"].get<int>(), 0);
+        EXPECT_GE(team["certificate_rounds"].get<int>(), 1);
+        EXPECT_GT(team["lanczos_steps"].get<int>(), 0);
+        EXPECT_GT(team["seconds"].get<double>(), 0.0);
+        const auto& bytes = team["bytes_between_robots"];
+        std::uint64_t sum = 0;
+        for (const auto& [actor, n] : bytes["by_actor"].items()) sum += n.get<std::uint64_t>();
+        EXPECT_EQ(sum, bytes["total"].get<std::uint64_t>());
+        EXPECT_EQ(static_cast<int>(bytes["by_robot"].size()), robots);
+    }
+}
+
+TEST(SolveDistributed, GraphsItCannotSplitFailNamingTheFile) {
+    for (const auto& [file, why] :
+         {std::pair{"cubicle.g2o", "both join poses"}, {"intel.g2o", "planar"}}) {
+        const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " solve " + Data(file) +
+                                    " --robots 2 --distributed 2>&1");
+        EXPECT_EQ(r.exit_code, 1) << r.out;
+        EXPECT_NE(r.out.find(Data(file)), std::string::npos) << r.out;
+        EXPECT_NE(r.out.find(why), std::string::npos) << r.out;
+    }
+}
+
+std::string PoseGraphConfig(const std::string& ranges) {
+    return "robots: [0, 1]\nsource:\n  kind: pose_graph\n  graph: " + Data("tinyGrid3D.g2o") +
+           "\n" + ranges;
+}
+
+TEST(RunPoseGraph, VertexRangesFromTheConfigCertifyTheOptimum) {
+    const auto central = Json("solve " + Data("tinyGrid3D.g2o") + " --quiet");
+    const auto team =
+        Json("run " + Write("ranges.yaml", PoseGraphConfig("  ranges:\n"
+                                                           "    0: {begin: 0, end: 3}\n"
+                                                           "    1: {begin: 3, end: 9}\n")));
+    ASSERT_FALSE(team.is_discarded());
+    EXPECT_EQ(team["path"], "distributed");
+    EXPECT_EQ(team["verdict"], "certified");
+    EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), kRelCost);
+}
+
+TEST(RunPoseGraph, BadRangesFailNamingTheKeyPath) {
+    const struct {
+        const char* ranges;
+        const char* error;
+    } cases[] = {
+        {"  ranges:\n    0: {begin: 0, end: 5}\n    1: {begin: 4, end: 9}\n",
+         "source.ranges.1.begin: 4 overlaps robot 0's range"},
+        {"  ranges:\n    0: {begin: 0, end: 5}\n    1: {begin: 5, end: 12}\n",
+         "source.ranges.1.end: 12 is beyond the graph's 9 vertices"},
+        {"  ranges:\n    0: {begin: 0, end: 4}\n    1: {begin: 5, end: 9}\n",
+         "source.ranges.1.begin: 5 leaves vertices [4, 5) to no robot"},
+        {"  ranges:\n    0: {begin: 0, end: 9}\n",
+         "source.ranges.1: missing (one entry per robot of the team)"},
+    };
+    for (const auto& c : cases) {
+        const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " run " +
+                                    Write("bad.yaml", PoseGraphConfig(c.ranges)) + " 2>&1");
+        EXPECT_EQ(r.exit_code, 1) << c.ranges << r.out;
+        EXPECT_NE(r.out.find(c.error), std::string::npos) << c.ranges << r.out;
+    }
+}
+
+TEST(RobotPoseGraph, TwoProcessesOverTcpCertifyTheInProcessOptimum) {
+    const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --quiet");
+    const std::string config = Write("tcp.yaml",
+                                     "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
+                                     "  graph: " +
+                                         Data("smallGrid3D.g2o") +
+                                         "\nnetwork:\n"
+                                         "  0: {host: 127.0.0.1, base_port: 27710}\n"
+                                         "  1: {host: 127.0.0.1, base_port: 27810}\n");
+    const std::string robot = std::string(CERTISLAM_BINARY) + " robot " + config;
+    const std::string out1 = Write("robot1.json", "");
+    const ShellResult r0 = Shell(robot + " --id 1 --json --timeout 120 > " + out1 + " 2>&1 & " +
+                                 robot + " --id 0 --json --timeout 120 2>&1; wait");
+    std::ifstream in(out1);
+    const std::string text1((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (const auto& text : {r0.out, text1}) {
+        const auto j = nlohmann::json::parse(text, nullptr, false);
+        ASSERT_FALSE(j.is_discarded()) << text;
+        EXPECT_EQ(j["path"], "distributed");
+        EXPECT_EQ(j["verdict"], "certified");
+        EXPECT_LE(RelDiff(j["cost"].get<double>(), central["cost"].get<double>()), kRelCost);
+        EXPECT_GT(j["bytes_sent"].get<std::uint64_t>(), 0u);
+    }
+}
+
+}  // namespace

@@ -28,14 +28,15 @@ void City(SimScenario* s) {
         "LiDAR-inertial drift; odometry slips 5 % in the tunnel";
 }
 
-/// Robot 0 enters a 240 m featureless tunnel from the city, robot 1 starts deep inside it
+/// Robot 0 enters a 150 m featureless tunnel from the city, robot 1 starts deep inside it
 /// heading the other way (a SubT-style deployment): their first common places are the tunnel,
 /// where registration is degenerate along the axis; later they meet at structured crossings.
 /// LiDAR-inertial drift is strong (yaw-rate and vertical-velocity bias random walks) and the
 /// odometry misses 15 % of the motion along the tunnel (scale error).
 void TunnelRendezvous(SimScenario* s) {
     SimulatorConfig& c = s->config;
-    c.world.tunnel_length_m = 240.0;
+    c.world.tunnel_length_m = 150.0;
+    c.world.tunnel_walkway_m = 1.2;  // a real tunnel is not symmetric under a half turn
     c.tunnel_slip = 0.15;
     c.drift.yaw_rate_bias_sigma_rad_s = 6e-4;
     c.drift.yaw_rate_bias_walk_rad_s_sqrt_s = 6e-5;
@@ -53,10 +54,10 @@ void TunnelRendezvous(SimScenario* s) {
          {st.east_loop_x, north},
          {east, north},
          {east, 0}},
-        {{st.tunnel_x_end - 30.0, 0}, {0, 0}, {0, north}, {east, north}, {east, p}, {p, p}},
+        {{st.tunnel_x_end - 20.0, 0}, {0, 0}, {0, north}, {east, north}, {east, p}, {p, p}},
     };
     s->description =
-        "robot 0 drives from the city through a 240 m featureless tunnel; robot 1 starts deep "
+        "robot 0 drives from the city through a 150 m featureless tunnel; robot 1 starts deep "
         "inside the tunnel heading the other way, so the robots first share places in the tunnel "
         "(registration degenerate along its axis), later at structured crossings; strong "
         "LiDAR-inertial drift (yaw-rate and vertical-velocity bias random walks), odometry "
@@ -71,8 +72,8 @@ void LargeDrift(SimScenario* s) {
     c.world.blocks_y = 3;
     c.world.tunnel_length_m = 60.0;
     c.tunnel_slip = 0.05;
-    c.drift.yaw_rate_bias_sigma_rad_s = 3e-3;
-    c.drift.yaw_rate_bias_walk_rad_s_sqrt_s = 3e-4;
+    c.drift.yaw_rate_bias_sigma_rad_s = 8e-3;
+    c.drift.yaw_rate_bias_walk_rad_s_sqrt_s = 8e-4;
     c.drift.scale_error_sigma = 1e-2;
     const SimStreets st = Layout(c.world);
     const double p = st.block_pitch_m;

@@ -72,8 +72,8 @@ void LargeDrift(SimScenario* s) {
     c.world.blocks_y = 3;
     c.world.tunnel_length_m = 60.0;
     c.tunnel_slip = 0.05;
-    c.drift.yaw_rate_bias_sigma_rad_s = 8e-3;
-    c.drift.yaw_rate_bias_walk_rad_s_sqrt_s = 8e-4;
+    c.drift.yaw_rate_bias_sigma_rad_s = 3e-3;
+    c.drift.yaw_rate_bias_walk_rad_s_sqrt_s = 3e-4;
     c.drift.scale_error_sigma = 1e-2;
     const SimStreets st = Layout(c.world);
     const double p = st.block_pitch_m;
@@ -85,7 +85,7 @@ void LargeDrift(SimScenario* s) {
     };
     s->description =
         "two robots on long loops around a 4 x 3 block grid, crossing each other's streets in "
-        "both directions; heavy yaw-rate bias (tens of degrees of rotational drift)";
+        "both directions; heavy yaw-rate bias (about 25 degrees of rotational drift)";
 }
 
 /// Eight robots on seeded random walks over the grid, each starting when the previous ends:

@@ -28,8 +28,8 @@ void City(SimScenario* s) {
         "LiDAR-inertial drift; odometry slips 5 % in the tunnel";
 }
 
-/// Robot 0 enters a 150 m featureless tunnel from the city, robot 1 starts deep inside it
-/// heading the other way (a SubT-style deployment): their first common places are the tunnel,
+/// Robot 0 enters a 150 m featureless tunnel from the city, robot 1 starts inside it (a
+/// SubT-style deployment) and follows the same way out: their first common places are the tunnel,
 /// where registration is degenerate along the axis; later they meet at structured crossings.
 /// LiDAR-inertial drift is strong (yaw-rate and vertical-velocity bias random walks) and the
 /// odometry misses 15 % of the motion along the tunnel (scale error).
@@ -54,11 +54,16 @@ void TunnelRendezvous(SimScenario* s) {
          {st.east_loop_x, north},
          {east, north},
          {east, 0}},
-        {{st.tunnel_x_end - 20.0, 0}, {0, 0}, {0, north}, {east, north}, {east, p}, {p, p}},
+        {{st.tunnel_x_begin + 30.0, 0},
+         {st.east_loop_x, 0},
+         {st.east_loop_x, north},
+         {p, north},
+         {p, 0},
+         {east, 0}},
     };
     s->description =
-        "robot 0 drives from the city through a 150 m featureless tunnel; robot 1 starts deep "
-        "inside the tunnel heading the other way, so the robots first share places in the tunnel "
+        "robot 0 drives from the city through a 150 m featureless tunnel; robot 1 starts "
+        "inside the tunnel and drives out east, so the robots first share places in the tunnel "
         "(registration degenerate along its axis), later at structured crossings; strong "
         "LiDAR-inertial drift (yaw-rate and vertical-velocity bias random walks), odometry "
         "misses 15 % of the motion in the tunnel";

@@ -279,6 +279,7 @@ void SolverActor::UpdateSnapshot() {
     }
     s.report = report_;
     s.changed = changed_;
+    s.edges = state_.OwnEdges();
     std::lock_guard lock(snapshot_mutex_);
     snapshot_ = std::move(s);
 }

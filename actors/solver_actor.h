@@ -57,6 +57,9 @@ struct SolverSnapshot {
     slam::Trajectory trajectory;  ///< own poses in the anchor's frame, with keyframe stamps
     std::optional<v1::CertificateReport> report;    ///< last certificate heard
     std::chrono::steady_clock::time_point changed;  ///< last change of the graph or rank
+    /// Own edges as the solver holds them (odometry and active loops whose tail is own, with
+    /// their weights), so a caller can rebuild the team graph.
+    std::vector<slam::LoopClosure> edges;
 };
 
 /// One robot's RBCD solver.

@@ -259,6 +259,10 @@ std::vector<ConfigKey> SourceKeys() {
             "source.max_keyframes",
             [](TeamConfig & c, int) -> auto& { return c.source.max_keyframes; }, {0.0, 1e9},
             "keyframes per robot at most (0: all)"),
+        Str(
+            "source.scenario", [](TeamConfig & c, int) -> auto& { return c.source.scenario; },
+            "named mission (city, tunnel-rendezvous, large-drift, swarm; \"\": defaults)",
+            "simulator"),
         Num<std::uint64_t>(
             "source.seed", [](TeamConfig & c, int) -> auto& { return c.source.simulator.seed; },
             {0.0, 9.0e15}, "fixes the simulated world, drift and noise", "simulator"),

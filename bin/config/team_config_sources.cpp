@@ -10,6 +10,7 @@
 #include "slam/io/keyframe_sources_io.h"
 #include "slam/io/multirobot_io.h"
 #include "slam/io/rosbag/rosbag_source_io.h"
+#include "slam/sim/sim_scenarios.h"
 
 namespace certislam::bin {
 namespace {
@@ -169,6 +170,16 @@ void FinishSourceConfig(const std::string& config_path, const std::vector<int>& 
         if (HasRanges(*config)) CheckRanges(config_path, robots, *config);
     }
     config->simulator.num_robots = static_cast<int>(robots.size());
+    if (config->kind == Kind::kSimulator && !config->scenario.empty()) {
+        auto scenario = slam::MakeScenario(config->scenario, static_cast<int>(robots.size()),
+                                           config->simulator.seed);
+        if (!scenario) {
+            std::string names;
+            for (const auto& n : slam::ScenarioNames()) names += (names.empty() ? "" : ", ") + n;
+            throw FieldError(config_path, "scenario", "must be one of " + names);
+        }
+        config->simulator = scenario->config;
+    }
 }
 
 TeamSource::TeamSource(const SourceConfig& config, const std::vector<int>& robots)

@@ -30,8 +30,10 @@ struct KittiSequenceConfig {
 /// The `source` part of a team configuration.
 struct SourceConfig {
     enum class Kind { kSimulator, kKeyframeFolder, kKitti, kSplit, kRosbag, kPoseGraph };
-    Kind kind = Kind::kSimulator;              ///< which reader
-    slam::SimulatorConfig simulator;           ///< kSimulator: the mission
+    Kind kind = Kind::kSimulator;     ///< which reader
+    slam::SimulatorConfig simulator;  ///< kSimulator: the mission
+    /// kSimulator: a named mission (slam::ScenarioNames(); "": the simulator's defaults).
+    std::string scenario;
     int max_keyframes = 0;                     ///< per robot at most (0: all), >= 0
     std::map<int, std::string> paths;          ///< kKeyframeFolder / kRosbag: robot -> path
     std::map<int, KittiSequenceConfig> kitti;  ///< kKitti: robot -> sequence

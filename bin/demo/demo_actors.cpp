@@ -46,6 +46,7 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
         loop_ends += snapshot.inter_robot_loops;  // each such loop touches two robots
         result->loops_found.push_back(node->LoopsFound());
         result->solver_steps.push_back(snapshot.steps);
+        result->edges.insert(result->edges.end(), snapshot.edges.begin(), snapshot.edges.end());
         result->bytes_sent += node->BytesSentToPeers();
         for (const auto& [actor, bytes] : node->BytesSentToPeersByActor()) {
             result->bytes_by_actor[actor] += bytes;

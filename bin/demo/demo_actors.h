@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "slam/core/keyframe.h"
+#include "slam/core/loop_closure.h"
 #include "slam/core/trajectory.h"
 #include "slam/mapping/mesh.h"
 
@@ -43,7 +44,10 @@ struct ActorMissionResult {
     std::uint64_t lanczos_steps = 0;   ///< their Lanczos steps (S v exchanges), all rounds
     int settled_skips = 0;  ///< changed bundles robot 0 did not re-check (settled, certified)
     std::map<std::string, std::uint64_t> bytes_by_actor;  ///< bytes_sent per actor, all robots
-    double seconds = 0.0;                                 ///< start to done
+    /// The team graph the solvers hold at the end: every robot's own edges (odometry and
+    /// accepted loops, with their weights), as SolverSnapshot::edges gives them.
+    std::vector<slam::LoopClosure> edges;
+    double seconds = 0.0;  ///< start to done
 };
 
 /// Progress of the run: stage and fraction done in [0, 1].

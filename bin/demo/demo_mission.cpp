@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "bin/demo/demo_actors.h"
+#include "bin/demo/demo_graph.h"
 #include "bin/demo/demo_output.h"
 #include "bin/demo/demo_plot.h"
 #include "bin/demo/demo_report.h"
@@ -21,8 +22,8 @@
 #include "slam/io/trajectory_io.h"
 #include "slam/mapping/keyframe_fusion.h"
 #include "slam/mapping/mesh_io.h"
+#include "slam/sim/sim_scenarios.h"
 #include "slam/sim/simulator.h"
-#include "slam/sim/tunnel_odometry.h"
 
 namespace certislam::bin {
 namespace {
@@ -42,27 +43,17 @@ struct SimulatedTeam {
     slam::SimStreets streets;                           ///< where the tunnel is
 };
 
-slam::SimulatorConfig SimulatorSettings(const DemoOptions& options) {
-    slam::SimulatorConfig config;
-    config.num_robots = options.robots;
-    config.seed = options.seed;
-    if (options.sequential) {
-        // Like the paper's data: one vehicle's sequential runs treated as robots, so robot r
-        // starts after robot r-1 ends (the interval is the longest route's duration).
-        const slam::MissionGenerator plan(config);
-        double longest_s = 0.0;
-        for (int r = 0; r < plan.num_robots(); ++r) {
-            const int last = plan.num_keyframes(r) - 1;
-            const auto stamps = plan.PoseOnly(r, last).stamp_ns - plan.PoseOnly(r, 0).stamp_ns;
-            longest_s = std::max(longest_s, static_cast<double>(stamps) * 1e-9);
-        }
-        config.robot_start_interval_s = longest_s + 10.0;
-    }
-    return config;
+slam::SimScenario Scenario(const DemoOptions& options) {
+    auto scenario =
+        slam::MakeScenario(options.scenario, options.robots, options.seed, options.sequential);
+    if (!scenario) throw std::invalid_argument("--scenario " + options.scenario + ": unknown");
+    if (options.tunnel_slip >= 0.0) scenario->config.tunnel_slip = options.tunnel_slip;
+    return *scenario;
 }
 
-SimulatedTeam Simulate(const DemoOptions& options, ProgressBar* bar) {
-    const slam::MissionGenerator generator(SimulatorSettings(options));
+SimulatedTeam Simulate(const slam::SimScenario& scenario, const DemoOptions& options,
+                       ProgressBar* bar) {
+    const slam::MissionGenerator generator(scenario.config);
     SimulatedTeam team;
     team.streets = generator.streets();
     const auto keyframes = [&](int r) {
@@ -106,6 +97,8 @@ std::int64_t RbcdBytes(const slam::PoseGraph& graph, int iterations, int rank) {
     return count * iterations * rank * 4 * 8;
 }
 
+using Methods = std::vector<std::pair<std::string, std::vector<slam::Trajectory>>>;
+
 std::string Fixed(double v) {
     char buf[32];
     std::snprintf(buf, sizeof(buf), "%.1f", v);
@@ -117,8 +110,7 @@ void Check(bool ok, const std::string& error) {
 }
 
 void WriteFiles(const DemoOptions& options, const SimulatedTeam& team,
-                const certify::MissionResult& mission,
-                const std::vector<std::pair<std::string, std::vector<slam::Trajectory>>>& methods,
+                const certify::MissionResult& mission, const Methods& methods,
                 const DemoPlotInput& plot, const slam::TriangleMesh* mesh) {
     namespace fs = std::filesystem;
     fs::create_directories(options.out_dir);
@@ -146,17 +138,21 @@ void WriteFiles(const DemoOptions& options, const SimulatedTeam& team,
     Check(WriteDemoPlot(path("trajectories.svg"), plot, &error), error);
 }
 
-/// The four methods of Table I (odometry in the team frame at its true start, its best case).
-std::vector<std::pair<std::string, std::vector<slam::Trajectory>>> Methods(
-    const SimulatedTeam& team, const certify::MissionResult& mission) {
-    return {{"odometry", OdometryInTeamFrame(team, mission.odometry)},
-            {"one_time_alignment", mission.one_time_alignment},
-            {"local_search", mission.local_search},
-            {"certified", mission.certified}};
+/// The five methods of Table I (odometry in the team frame at its true start, its best case).
+Methods MethodsOf(const SimulatedTeam& team, const certify::MissionResult& mission,
+                  const std::vector<slam::Trajectory>& certified) {
+    return {
+        {"odometry", OdometryInTeamFrame(team, mission.odometry)},
+        {"one_time_alignment", mission.one_time_alignment},
+        {"local_search", certify::SplitTrajectories(
+                             mission.graph, mission.local_search_from_odometry.poses, team.robots)},
+        {"local_search_from_alignment",
+         certify::SplitTrajectories(mission.graph, mission.local_search_from_alignment.poses,
+                                    team.robots)},
+        {"certified", certified}};
 }
 
-void FillCertificate(const certify::MissionResult& mission, const SimulatedTeam& team,
-                     DemoReport* report) {
+void FillPipelineCertificate(const certify::MissionResult& mission, DemoReport* report) {
     const auto& cert = mission.solution.certificate;
     report->certified = cert.status == certify::CertificateResult::Status::kCertified;
     report->lambda_min = cert.lambda_min;
@@ -169,24 +165,6 @@ void FillCertificate(const certify::MissionResult& mission, const SimulatedTeam&
     report->cost = mission.solution.cost;
     report->rank = mission.solution.rank;
     report->rbcd_iterations = mission.solution.iterations;
-    std::vector<double> from_odometry;
-    for (const auto& r : report->robots) from_odometry.push_back(r.local_search);
-    report->local_search =
-        LocalSearchReport("odometry (each robot's odometry frame taken as the team frame)",
-                          mission.local_search_from_odometry, mission.solution.cost, from_odometry);
-    report->local_search_aligned = LocalSearchReport(
-        "the one-time alignment (DiSCo-style first-encounter frames)",
-        mission.local_search_from_alignment, mission.solution.cost,
-        slam::AlignTeam(team.ground_truth,
-                        certify::SplitTrajectories(
-                            mission.graph, mission.local_search_from_alignment.poses, team.robots))
-            .ate_rmse);
-}
-
-void FillLoopsAndBytes(const certify::MissionResult& mission, DemoReport* report) {
-    report->inter_robot_loops = mission.loop_stats.inter_robot;
-    report->intra_robot_loops = mission.loop_stats.intra_robot;
-    report->candidates = mission.loop_stats.candidates;
     report->bytes_sent =
         mission.loop_stats.descriptor_bytes_sent + mission.loop_stats.cloud_bytes_sent +
         mission.loop_stats.loop_bytes_sent +
@@ -195,6 +173,26 @@ void FillLoopsAndBytes(const certify::MissionResult& mission, DemoReport* report
         "serialized sizes of what the protocol sends between robots (descriptors to every peer, "
         "clouds of inter-robot candidates, loop closures, public poses every RBCD iteration), "
         "counted in-process";
+}
+
+/// Both local-search runs, judged against the one certified cost of the report.
+void FillLocalSearch(const certify::MissionResult& mission, const DemoPlotInput& plot,
+                     DemoReport* report) {
+    report->local_search =
+        LocalSearchReport("odometry (each robot's odometry frame taken as the team frame)",
+                          mission.local_search_from_odometry, report->cost, plot.methods[2].rmse);
+    report->local_search_aligned =
+        LocalSearchReport("the one-time alignment (DiSCo-style first-encounter frames)",
+                          mission.local_search_from_alignment, report->cost, plot.methods[3].rmse);
+}
+
+void FillLoops(const certify::MissionResult& mission, DemoReport* report) {
+    report->inter_robot_loops = 0;
+    report->intra_robot_loops = 0;
+    for (const auto& loop : mission.loops) {
+        ++(loop.inter_robot() ? report->inter_robot_loops : report->intra_robot_loops);
+    }
+    report->candidates = mission.loop_stats.candidates;
     report->loop_source = mission.loops.empty() || !mission.loops.front().from_ground_truth
                               ? "front end (Scan Context + registration + PCM)"
                               : "GROUND TRUTH with noise (fallback)";
@@ -202,96 +200,40 @@ void FillLoopsAndBytes(const certify::MissionResult& mission, DemoReport* report
                             mission.warnings.end());
 }
 
-/// The certified row, the certificate, the loops and the bytes from the actor graph (what the
-/// demo reports by default); the direct pipeline's certified solution is kept for comparison.
-void FillFromActors(const ActorMissionResult& run, const std::vector<double>& rmse,
-                    DemoReport* report) {
-    nlohmann::json pipeline_rmse = nlohmann::json::array();
-    for (auto& row : report->robots) pipeline_rmse.push_back(row.certified);
-    report->pipeline_certified = {{"certified", report->certified},
-                                  {"lambda_min", report->lambda_min},
-                                  {"lambda_min_relative", report->lambda_min_relative},
-                                  {"cost", report->cost},
-                                  {"rank", report->rank},
-                                  {"rbcd_iterations", report->rbcd_iterations},
-                                  {"inter_robot_loops", report->inter_robot_loops},
-                                  {"bytes_sent_counted", report->bytes_sent},
-                                  {"rmse_certified", pipeline_rmse}};
-    for (size_t r = 0; r < report->robots.size() && r < rmse.size(); ++r) {
-        report->robots[r].certified = rmse[r];
-    }
-    report->certified = run.done && run.certified;
-    report->lambda_min = run.lambda_min;
-    report->lambda_min_relative = 0.0;  // not computed by the actors (pipeline_certified has it)
-    report->verdict = run.verdict;
-    report->has_bound = run.has_bound;
-    report->suboptimality_bound = run.suboptimality_bound;
-    report->lower_bound = run.lower_bound;
-    report->relative_suboptimality_bound = run.relative_suboptimality_bound;
-    report->cost = run.cost;
-    report->rank = run.rank;
-    report->rbcd_iterations = 0;
-    for (const auto steps : run.solver_steps) report->rbcd_iterations += static_cast<int>(steps);
-    report->inter_robot_loops = run.team_inter_robot_loops;
-    report->bytes_sent = static_cast<std::int64_t>(run.bytes_sent);
-    report->bytes_note =
-        "measured on the actor graph's sockets: every message sent on an edge that reaches "
-        "another robot (descriptors, cloud requests and replies, loop closures, public poses, "
-        "certificate traffic), envelope and frames";
-    report->actor_graph = {{"done", run.done},
-                           {"certified", run.certified},
-                           {"verdict", run.verdict},
-                           {"certificate_path", run.certificate_path},
-                           {"seconds", run.seconds},
-                           {"bytes_sent_measured", run.bytes_sent},
-                           {"inter_robot_loops_per_robot", run.inter_robot_loops},
-                           {"loops_accepted_per_matcher", run.loops_found},
-                           {"solver_steps", run.solver_steps},
-                           {"map_submaps", run.submaps},
-                           {"map_bytes_sent", run.map_bytes_sent},
-                           {"certificate_rounds", run.certificate_rounds},
-                           {"lanczos_steps", run.lanczos_steps},
-                           {"settled_skips", run.settled_skips},
-                           {"bytes_by_actor", run.bytes_by_actor},
-                           {"mesh_triangles", run.mesh.triangles.size()},
-                           {"anchor", run.anchor},
-                           {"rmse_certified", rmse}};
-    report->timings["actor_graph"] = run.seconds;
-    if (!run.done) {
-        report->warnings.push_back("actor graph: not every robot was certified and quiet within " +
-                                   Fixed(run.seconds) + " s");
-    }
-    for (size_t r = 0; r < rmse.size() && r < report->robots.size(); ++r) {
-        if (rmse[r] > report->robots[r].odometry) {
-            report->warnings.push_back("actor graph: robot " + std::to_string(r) +
-                                       "'s certified RMSE " + Fixed(rmse[r]) +
-                                       " m is worse than its odometry's");
-        }
-    }
-}
-
 /// Table I's rows and the plot: each method scored under its own joint alignment of the team.
-DemoPlotInput ScoreMethods(
-    const DemoOptions& options, const SimulatedTeam& team, const certify::MissionResult& mission,
-    const std::vector<std::pair<std::string, std::vector<slam::Trajectory>>>& methods,
-    DemoReport* report) {
-    DemoPlotInput plot{"certislam demo: " + std::to_string(options.robots) +
+DemoPlotInput ScoreMethods(const SimulatedTeam& team, const Methods& methods, DemoReport* report) {
+    DemoPlotInput plot{"certislam demo (" + report->scenario +
+                           "): " + std::to_string(team.robots.size()) +
                            " robots, top-down (x-y, team frame), joint SE(3) alignment",
                        team.ground_truth,
                        {}};
-    const char* colours[] = {"#7f7f7f", "#ff7f0e", "#9467bd", "#2ca02c"};
-    const char* names[] = {"odometry", "one-time alignment", "local search (LM)", "certified RBCD"};
+    const char* colours[] = {"#7f7f7f", "#ff7f0e", "#9467bd", "#8c564b", "#2ca02c"};
+    const char* names[] = {"odometry", "one-time alignment", "local search (LM) from odometry",
+                           "local search (LM) from alignment", "certified RBCD"};
     for (size_t m = 0; m < methods.size(); ++m) {
         slam::AlignedTeam scored = slam::AlignTeam(team.ground_truth, methods[m].second);
         plot.methods.push_back({names[m], colours[m], std::move(scored.aligned), scored.ate_rmse,
-                                m == 2 ? 5.0 : 1.6});  // local search wide: may hide certified
+                                m == 2 || m == 3 ? 4.0 : 1.6});  // wide: may hide certified
     }
-    const std::vector<double> pipeline_rmse =
-        slam::AlignTeam(team.ground_truth, mission.certified).ate_rmse;
+    const auto gain = [](double baseline, double ours) {
+        return baseline > 0.0 ? 100.0 * (baseline - ours) / baseline : 0.0;
+    };
     for (size_t r = 0; r < team.robots.size(); ++r) {
-        report->robots.push_back({static_cast<int>(r), static_cast<int>(team.robots[r].size()),
-                                  plot.methods[0].rmse[r], plot.methods[1].rmse[r],
-                                  plot.methods[2].rmse[r], pipeline_rmse[r]});
+        DemoRobotRow row;
+        row.id = static_cast<int>(r);
+        row.keyframes = static_cast<int>(team.robots[r].size());
+        row.odometry = plot.methods[0].rmse[r];
+        row.one_time_alignment = plot.methods[1].rmse[r];
+        row.local_search = plot.methods[2].rmse[r];
+        row.local_search_aligned = plot.methods[3].rmse[r];
+        row.certified = plot.methods[4].rmse[r];
+        row.improvement_over_alignment_pct = gain(row.one_time_alignment, row.certified);
+        row.improvement_over_odometry_pct = gain(row.odometry, row.certified);
+        if (row.certified > row.odometry) {
+            report->warnings.push_back("robot " + std::to_string(r) + "'s certified RMSE " +
+                                       Fixed(row.certified) + " m is worse than its odometry's");
+        }
+        report->robots.push_back(row);
     }
     return plot;
 }
@@ -302,12 +244,34 @@ std::string PipelineText(bool actors) {
                "(loops, joint graph, baselines, certified RBCD); bytes_sent is counted from "
                "serialized sizes, not measured on sockets";
     }
-    return "certified RBCD, the certificate, inter_robot_loops and bytes_sent from the actor graph "
-           "(ingest, descriptor, loop matcher with PCM, RBCD solver, certifier per robot, every "
-           "robot in this process over inproc); the baselines (odometry, one-time alignment, "
-           "local search) from the slam/certify pipeline called directly on the same keyframes "
-           "with its own loop stage (same Scan Context + GICP + PCM method), which also gives "
-           "intra_robot_loops, candidates, the g2o graph and pipeline_certified for comparison";
+    return "one front end: the actor graph (ingest, descriptor, loop matcher with PCM, RBCD "
+           "solver, certifier per robot, every robot in this process over inproc) gives the "
+           "loops, certified RBCD, the certificate and bytes_sent; the baselines (odometry, "
+           "one-time alignment, local search from odometry and from the alignment, each with "
+           "its own certificate) run on the team graph the actors solved (their edges, same "
+           "weights), so every row of Table I is on one graph";
+}
+
+std::string MissionText(const slam::SimScenario& scenario, const DemoOptions& options) {
+    return scenario.name + ": " + std::to_string(scenario.config.num_robots) + " robots " +
+           (options.sequential ? "driving one after another" : "driving at once") + "; " +
+           scenario.description + " (seed " + std::to_string(options.seed) + ", tunnel slip " +
+           Fixed(100.0 * scenario.config.tunnel_slip) + " %)";
+}
+
+/// The certified row from the actor graph, the baselines on the graph it solved.
+certify::MissionResult ActorPath(const DemoOptions& options, const SimulatedTeam& team,
+                                 const certify::MissionConfig& config, ProgressBar* bar,
+                                 ActorMissionResult* run, DemoReport* report) {
+    *run = RunThroughActors(
+        team.robots, options.actors_timeout_s, options.voxel_m, options.distributed_certificate,
+        [&](const std::string& stage, double f) { bar->Update(stage, 0.25 + 0.5 * f); });
+    report->timings["actor_graph"] = run->seconds;
+    certify::MissionResult mission = BaselinesOnActorGraph(
+        team.robots, *run, config,
+        [&](const std::string& stage, double f) { bar->Update(stage, 0.75 + 0.15 * f); });
+    FillFromActors(*run, &mission, report);
+    return mission;
 }
 
 }  // namespace
@@ -316,17 +280,10 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     const auto start = Clock::now();
     DemoReport report;
     ProgressBar bar(!options.quiet);
-    SimulatedTeam team = Simulate(options, &bar);
-    report.tunnel_steps =
-        slam::DegradeOdometryInTunnel(team.streets, options.tunnel_slip, team.truth, &team.robots);
-    report.mission = std::to_string(options.robots) + " robots " +
-                     (options.sequential ? "driving one after another" : "driving at once") +
-                     " on overlapping routes through a simulated city; drifting LiDAR-inertial "
-                     "odometry (yaw-rate and vertical-velocity bias random walks, scale error); " +
-                     std::to_string(report.tunnel_steps) +
-                     " keyframe steps inside the tunnel, where odometry under-estimates motion "
-                     "by " +
-                     Fixed(100.0 * options.tunnel_slip) + " %";
+    const slam::SimScenario scenario = Scenario(options);
+    const SimulatedTeam team = Simulate(scenario, options, &bar);
+    report.scenario = scenario.name;
+    report.mission = MissionText(scenario, options);
     report.timings["simulation"] = Since(start);
 
     certify::MissionConfig config;
@@ -334,34 +291,32 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     const bool actors = options.actors && !options.ground_truth_loops;
     report.pipeline = PipelineText(actors);
     report.certified_source = actors ? "actor graph" : "pipeline";
-    const auto mission = certify::RunMission(
-        team.robots, team.truth, config,
-        [&](const std::string& stage, double f) { bar.Update(stage, 0.25 + 0.25 * f); });
-    report.timings["front_end"] = mission.front_end_seconds;
-    report.timings["back_end"] = mission.back_end_seconds;
-    report.timings["rbcd_and_certificate"] = mission.solution.seconds;
-    report.timings["local_search_from_odometry"] = mission.local_search_from_odometry.seconds;
-
-    auto methods = Methods(team, mission);
     std::optional<ActorMissionResult> run;
+    certify::MissionResult mission;
     if (actors) {
-        run = RunThroughActors(
-            team.robots, options.actors_timeout_s, options.voxel_m, options.distributed_certificate,
-            [&](const std::string& stage, double f) { bar.Update(stage, 0.5 + 0.35 * f); });
-        methods[3].second = run->trajectory;
+        run.emplace();
+        mission = ActorPath(options, team, config, &bar, &*run, &report);
+    } else {
+        mission = certify::RunMission(
+            team.robots, team.truth, config,
+            [&](const std::string& stage, double f) { bar.Update(stage, 0.25 + 0.6 * f); });
+        FillPipelineCertificate(mission, &report);
+        report.timings["front_end"] = mission.front_end_seconds;
+        report.timings["rbcd_and_certificate"] = mission.solution.seconds;
     }
-    const DemoPlotInput plot = ScoreMethods(options, team, mission, methods, &report);
-    FillCertificate(mission, team, &report);
-    FillLoopsAndBytes(mission, &report);
-    if (run) FillFromActors(*run, plot.methods[3].rmse, &report);
+    report.timings["baselines_and_local_search"] = mission.back_end_seconds;
+    const Methods methods = MethodsOf(team, mission, mission.certified);
+    const DemoPlotInput plot = ScoreMethods(team, methods, &report);
+    FillLocalSearch(mission, plot, &report);
+    FillLoops(mission, &report);
 
     slam::TriangleMesh mesh;
     const auto map_start = Clock::now();
     if (run) {
         mesh = std::move(run->mesh);  // robot 0's TSDF mapper actor: every robot's submaps
     } else if (options.voxel_m > 0) {
-        mesh = slam::FuseKeyframes(team.robots, methods[3].second, options.voxel_m, [&](double f) {
-            bar.Update("fusing TSDF map", 0.8 + 0.15 * f);
+        mesh = slam::FuseKeyframes(team.robots, mission.certified, options.voxel_m, [&](double f) {
+            bar.Update("fusing TSDF map", 0.85 + 0.1 * f);
         });
     }
     report.timings["tsdf_mesh"] = Since(map_start);

@@ -49,7 +49,11 @@ nlohmann::json DemoReportJson(const DemoReport& report) {
                                 {{"odometry", r.odometry},
                                  {"one_time_alignment", r.one_time_alignment},
                                  {"local_search", r.local_search},
-                                 {"certified", r.certified}}}});
+                                 {"local_search_from_alignment", r.local_search_aligned},
+                                 {"certified", r.certified}}},
+                               {"improvement_pct",
+                                {{"over_one_time_alignment", r.improvement_over_alignment_pct},
+                                 {"over_odometry", r.improvement_over_odometry_pct}}}});
     }
     j["certified"] = report.certified;
     j["lambda_min"] = report.lambda_min;
@@ -57,7 +61,6 @@ nlohmann::json DemoReportJson(const DemoReport& report) {
         j["lambda_min_relative"] = report.lambda_min_relative;
     }
     j["certified_source"] = report.certified_source;
-    j["pipeline_certified"] = report.pipeline_certified;
     j["verdict"] = report.verdict;
     j["objective"] = report.cost;
     if (report.has_bound) {  // only a proven bound
@@ -81,7 +84,7 @@ nlohmann::json DemoReportJson(const DemoReport& report) {
     j["pipeline"] = report.pipeline;
     j["mission"] = report.mission;
     j["actor_graph"] = report.actor_graph;
-    j["tunnel_steps"] = report.tunnel_steps;
+    j["scenario"] = report.scenario;
     j["loop_source"] = report.loop_source;
     j["warnings"] = report.warnings;
     j["rmse_alignment"] = "one SE(3) Umeyama alignment of the whole team (evo's ATE, translation)";

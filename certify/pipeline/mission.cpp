@@ -173,32 +173,46 @@ LocalSearchRun LocalSearchJoint(const PoseGraph& graph, const PoseMatrix& initia
     return run;
 }
 
-MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
-                         const std::vector<std::vector<Eigen::Isometry3d>>& truth,
-                         const MissionConfig& config, const MissionProgress& progress) {
-    config.Validate();
-    if (robots.empty() || robots[0].empty()) {
-        throw std::invalid_argument("robots: robot 0 has no keyframes (it anchors the team frame)");
+PoseGraph GraphFromEdges(const std::vector<int>& poses, const std::vector<LoopClosure>& edges) {
+    PoseGraph graph;
+    graph.d = 3;
+    std::vector<int> offset;
+    for (size_t r = 0; r < poses.size(); ++r) {
+        offset.push_back(graph.n);
+        for (int i = 0; i < poses[r]; ++i) graph.ids.push_back({static_cast<int>(r), i});
+        graph.n += poses[r];
     }
+    const auto valid = [&](const PoseId& id) {
+        return id.robot >= 0 && id.robot < static_cast<int>(poses.size()) && id.index >= 0 &&
+               id.index < poses[id.robot];
+    };
+    for (const auto& e : edges) {
+        if (!valid(e.a) || !valid(e.b)) continue;
+        auto m = MeasurementOf(offset[e.a.robot] + e.a.index, offset[e.b.robot] + e.b.index,
+                               e.T_a_b, e.kappa, e.tau);
+        m.is_known_inlier = e.a.robot == e.b.robot && e.b.index == e.a.index + 1;
+        graph.edges.push_back(m);
+    }
+    return graph;
+}
+
+MissionResult SolveMissionGraph(const std::vector<std::vector<Keyframe>>& robots,
+                                std::vector<LoopClosure> loops, PoseGraph graph,
+                                const MissionConfig& config, bool certified_rbcd,
+                                const MissionProgress& progress) {
+    config.Validate();
     const auto report = [&](const std::string& stage, double f) {
         if (progress) progress(stage, f);
     };
+    const auto start = std::chrono::steady_clock::now();
     MissionResult result;
-    auto start = std::chrono::steady_clock::now();
-    report("loop closures", 0.0);
-    auto loops = DetectLoops(robots, truth, config.loops);
-    result.loops = std::move(loops.loops);
-    result.loop_stats = loops.stats;
-    result.warnings = std::move(loops.warnings);
-    result.front_end_seconds = Seconds(start);
-
-    start = std::chrono::steady_clock::now();
+    result.loops = std::move(loops);
+    result.graph = std::move(graph);
     report("baselines", 0.5);
     std::vector<std::vector<Eigen::Isometry3d>> odometry(robots.size());
     for (size_t r = 0; r < robots.size(); ++r) {
         for (const auto& kf : robots[r]) odometry[r].push_back(kf.T_odom_sensor);
     }
-    result.graph = BuildJointGraph(odometry, result.loops, config.noise);
     result.odometry = SplitTrajectories(result.graph, FromIsometries(odometry), robots);
     const auto one_time = OneTimeAlignment(odometry, result.loops);
     const PoseMatrix one_time_poses = FromIsometries(one_time.poses);
@@ -222,16 +236,41 @@ MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
     }
     result.local_search =
         SplitTrajectories(result.graph, result.local_search_from_odometry.poses, robots);
-    report("certified RBCD", 0.75);
-    result.solution = SolveCertifiedJoint(result.graph, config.solver);
-    result.solution.poses = InTeamFrame(T_team_first, result.solution.poses);
-    result.certified = SplitTrajectories(result.graph, result.solution.poses, robots);
-    if (result.status == MissionResult::Status::kOk &&
-        result.solution.certificate.status != certify::CertificateResult::Status::kCertified) {
-        result.status = MissionResult::Status::kNotCertified;
+    if (certified_rbcd) {
+        report("certified RBCD", 0.75);
+        result.solution = SolveCertifiedJoint(result.graph, config.solver);
+        result.solution.poses = InTeamFrame(T_team_first, result.solution.poses);
+        result.certified = SplitTrajectories(result.graph, result.solution.poses, robots);
+        if (result.solution.certificate.status != certify::CertificateResult::Status::kCertified) {
+            result.status = MissionResult::Status::kNotCertified;
+        }
     }
     result.back_end_seconds = Seconds(start);
     report("done", 1.0);
+    return result;
+}
+
+MissionResult RunMission(const std::vector<std::vector<Keyframe>>& robots,
+                         const std::vector<std::vector<Eigen::Isometry3d>>& truth,
+                         const MissionConfig& config, const MissionProgress& progress) {
+    config.Validate();
+    if (robots.empty() || robots[0].empty()) {
+        throw std::invalid_argument("robots: robot 0 has no keyframes (it anchors the team frame)");
+    }
+    if (progress) progress("loop closures", 0.0);
+    const auto start = std::chrono::steady_clock::now();
+    auto loops = DetectLoops(robots, truth, config.loops);
+    const double front_end_seconds = Seconds(start);
+    std::vector<std::vector<Eigen::Isometry3d>> odometry(robots.size());
+    for (size_t r = 0; r < robots.size(); ++r) {
+        for (const auto& kf : robots[r]) odometry[r].push_back(kf.T_odom_sensor);
+    }
+    PoseGraph graph = BuildJointGraph(odometry, loops.loops, config.noise);
+    MissionResult result =
+        SolveMissionGraph(robots, std::move(loops.loops), std::move(graph), config, true, progress);
+    result.loop_stats = loops.stats;
+    result.warnings = std::move(loops.warnings);
+    result.front_end_seconds = front_end_seconds;
     return result;
 }
 

@@ -113,6 +113,13 @@ slam::PoseGraph BuildJointGraph(const std::vector<std::vector<Eigen::Isometry3d>
                                 const std::vector<slam::LoopClosure>& loops,
                                 const EdgeNoiseConfig& noise);
 
+/// Joint graph from edges as a solver holds them (odometry and loops, each with its own weights,
+/// e.g. the actor graph's SolverState::OwnEdges of every robot): robot r has poses[r] poses,
+/// global index = robot offset + keyframe index; same-robot consecutive edges marked known
+/// inliers; ids set. Edges whose ends are out of range are dropped.
+slam::PoseGraph GraphFromEdges(const std::vector<int>& poses,
+                               const std::vector<slam::LoopClosure>& edges);
+
 /// Splits 3 x 4n poses into per-robot trajectories with the keyframes' stamps.
 std::vector<slam::Trajectory> SplitTrajectories(
     const slam::PoseGraph& graph, const slam::PoseMatrix& poses,
@@ -128,6 +135,16 @@ JointSolution SolveCertifiedJoint(const slam::PoseGraph& graph, const MissionSol
 /// says whether that point is the global optimum. Poses anchored (pose 0 = identity).
 LocalSearchRun LocalSearchJoint(const slam::PoseGraph& graph, const slam::PoseMatrix& initial,
                                 const MissionSolverConfig& config);
+
+/// The pipeline after its front end, on `graph` (robots contiguous, as BuildJointGraph or
+/// GraphFromEdges give it) with the accepted `loops` in discovery order: odometry, one-time
+/// alignment, local search from odometry and from the alignment (each certified), and, when
+/// `certified_rbcd`, certified RBCD (else `solution` and `certified` stay empty). Throws
+/// std::runtime_error when some robot is joined to robot 0 by no chain of inter-robot loops.
+MissionResult SolveMissionGraph(const std::vector<std::vector<slam::Keyframe>>& robots,
+                                std::vector<slam::LoopClosure> loops, slam::PoseGraph graph,
+                                const MissionConfig& config, bool certified_rbcd,
+                                const MissionProgress& progress = {});
 
 /// Runs the whole pipeline on keyframes (`robots[k][i]`, clouds needed unless the loop source
 /// is ground truth). Throws std::runtime_error when some robot is joined to robot 0 by no

@@ -88,9 +88,14 @@ struct Builder {
         boxes.push_back({Eigen::Vector3d(x0, w, 0.0), Eigen::Vector3d(x1, w + t, h + t)});
         boxes.push_back({Eigen::Vector3d(x0, -w - t, 0.0), Eigen::Vector3d(x1, -w, h + t)});
         boxes.push_back({Eigen::Vector3d(x0, -w - t, h), Eigen::Vector3d(x1, w + t, h + t)});
+        if (cfg.tunnel_walkway_m > 0.0) {
+            boxes.push_back({Eigen::Vector3d(x0, w - cfg.tunnel_walkway_m, 0.0),
+                             Eigen::Vector3d(x1, w, kWalkwayHeight)});
+        }
     }
 
     static constexpr double kWallThickness = 0.6;
+    static constexpr double kWalkwayHeight = 1.0;
 };
 
 }  // namespace

@@ -85,6 +85,8 @@ void SimWorldConfig::Validate() const {
     Require(tunnel_length_m >= 0.0, "tunnel_length_m", tunnel_length_m, ">= 0");
     Require(tunnel_half_width_m > 0.0, "tunnel_half_width_m", tunnel_half_width_m, "> 0");
     Require(tunnel_height_m > 0.0, "tunnel_height_m", tunnel_height_m, "> 0");
+    Require(tunnel_walkway_m >= 0.0 && tunnel_walkway_m < tunnel_half_width_m, "tunnel_walkway_m",
+            tunnel_walkway_m, ">= 0 and < tunnel_half_width_m");
     Require(tunnel_approach_m > 0.0, "tunnel_approach_m", tunnel_approach_m, "> 0");
     Require(grid_cell_m > 0.0, "grid_cell_m", grid_cell_m, "> 0");
 }

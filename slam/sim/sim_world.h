@@ -55,8 +55,11 @@ struct SimWorldConfig {
     double tunnel_length_m = 100.0;       ///< length of the featureless tunnel, >= 0 (0: none)
     double tunnel_half_width_m = 5.0;     ///< inner half width of the tunnel, > 0
     double tunnel_height_m = 6.0;         ///< inner height of the tunnel roof, > 0
-    double tunnel_approach_m = 25.0;      ///< open street before and after the tunnel, > 0
-    double grid_cell_m = 8.0;             ///< cell size of the ray-casting acceleration grid, > 0
+    /// Width of a raised walkway (1 m high) along the tunnel's north wall, [0, tunnel half width):
+    /// breaks the tunnel's 180-degree symmetry, not its along-axis degeneracy (0: none).
+    double tunnel_walkway_m = 0.0;
+    double tunnel_approach_m = 25.0;  ///< open street before and after the tunnel, > 0
+    double grid_cell_m = 8.0;         ///< cell size of the ray-casting acceleration grid, > 0
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;

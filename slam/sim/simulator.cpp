@@ -6,6 +6,7 @@
 #include <string>
 
 #include "slam/sim/simulator_trajectory.h"
+#include "slam/sim/tunnel_odometry.h"
 
 namespace certislam::slam {
 namespace {
@@ -89,6 +90,7 @@ void SimulatorConfig::Validate() const {
     Require(random_route_length_m > 0.0, t, "random_route_length_m", random_route_length_m, "> 0");
     Require(robot_start_interval_s >= 0.0, t, "robot_start_interval_s", robot_start_interval_s,
             ">= 0");
+    Require(tunnel_slip >= 0.0 && tunnel_slip < 1.0, t, "tunnel_slip", tunnel_slip, "in [0, 1)");
     for (size_t r = 0; r < routes.size(); ++r) {
         Require(routes[r].size() >= 2, t, "routes[r].size()", double(routes[r].size()), ">= 2");
     }
@@ -121,6 +123,10 @@ MissionGenerator::MissionGenerator(const SimulatorConfig& config)
         const SimPath path(route, config_.lane_offset_m, config_.corner_cut_m);
         std::mt19937_64 rng(SubSeed(config_.seed, kDriftStream, r));
         SimRobotTrajectory traj = IntegrateTrajectory(path, config_, rng);
+        if (config_.tunnel_slip > 0.0) {
+            DegradeOdometryInTunnel(world_.streets, config_.tunnel_slip, traj.truth,
+                                    &traj.odometry);
+        }
         std::vector<std::int64_t> stamps;
         for (double s : traj.s) {
             const double t = r * config_.robot_start_interval_s + s / config_.speed_m_s;

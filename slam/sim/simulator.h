@@ -60,6 +60,9 @@ struct SimulatorConfig {
     double corner_cut_m = 8.0;             ///< corners are rounded from this far before them, > 0
     double random_route_length_m = 500.0;  ///< route length of robots >= 2 (random walks), > 0
     double robot_start_interval_s = 0.0;   ///< robot r's stamps start at r * this, >= 0
+    /// Fraction of the along-track motion odometry misses inside the tunnel, [0, 1): LiDAR
+    /// odometry in a featureless tunnel under-observes its axis (0: no degradation).
+    double tunnel_slip = 0.0;
     /// Optional routes (world x-y waypoints on street centrelines, no U-turns) overriding the
     /// default ones; robot r uses routes[r] when r < routes.size().
     std::vector<std::vector<Eigen::Vector2d>> routes;

@@ -14,24 +14,35 @@ bool InTunnel(const SimStreets& streets, const Eigen::Vector3d& p) {
 }  // namespace
 
 int DegradeOdometryInTunnel(const SimStreets& streets, double slip,
+                            const std::vector<Eigen::Isometry3d>& T_world_sensor_truth,
+                            std::vector<Eigen::Isometry3d>* T_odom_sensor) {
+    auto& odom = *T_odom_sensor;
+    int degraded = 0;
+    Eigen::Isometry3d T_prev_old = odom.empty() ? Eigen::Isometry3d::Identity() : odom.front();
+    for (size_t i = 1; i < odom.size(); ++i) {
+        Eigen::Isometry3d step = T_prev_old.inverse() * odom[i];
+        T_prev_old = odom[i];
+        const Eigen::Vector3d mid = 0.5 * (T_world_sensor_truth[i - 1].translation() +
+                                           T_world_sensor_truth[i].translation());
+        if (InTunnel(streets, mid)) {
+            step.translation() *= 1.0 - slip;
+            ++degraded;
+        }
+        odom[i] = odom[i - 1] * step;
+    }
+    return degraded;
+}
+
+int DegradeOdometryInTunnel(const SimStreets& streets, double slip,
                             const std::vector<std::vector<Eigen::Isometry3d>>& T_world_sensor_truth,
                             std::vector<std::vector<Keyframe>>* robots) {
     int degraded = 0;
     for (size_t r = 0; r < robots->size(); ++r) {
         auto& kfs = (*robots)[r];
-        const auto& truth = T_world_sensor_truth[r];
-        Eigen::Isometry3d T_prev_old =
-            kfs.empty() ? Eigen::Isometry3d::Identity() : kfs.front().T_odom_sensor;
-        for (size_t i = 1; i < kfs.size(); ++i) {
-            Eigen::Isometry3d step = T_prev_old.inverse() * kfs[i].T_odom_sensor;
-            T_prev_old = kfs[i].T_odom_sensor;
-            const Eigen::Vector3d mid = 0.5 * (truth[i - 1].translation() + truth[i].translation());
-            if (InTunnel(streets, mid)) {
-                step.translation() *= 1.0 - slip;
-                ++degraded;
-            }
-            kfs[i].T_odom_sensor = kfs[i - 1].T_odom_sensor * step;
-        }
+        std::vector<Eigen::Isometry3d> odom;
+        for (const auto& kf : kfs) odom.push_back(kf.T_odom_sensor);
+        degraded += DegradeOdometryInTunnel(streets, slip, T_world_sensor_truth[r], &odom);
+        for (size_t i = 0; i < kfs.size(); ++i) kfs[i].T_odom_sensor = odom[i];
     }
     return degraded;
 }

@@ -18,4 +18,10 @@ int DegradeOdometryInTunnel(const SimStreets& streets, double slip,
                             const std::vector<std::vector<Eigen::Isometry3d>>& T_world_sensor_truth,
                             std::vector<std::vector<Keyframe>>* robots);
 
+/// The same on one robot's odometry poses (`T_odom_sensor[i]` of true pose
+/// `T_world_sensor_truth[i]`), re-integrated from the first. Returns the steps degraded.
+int DegradeOdometryInTunnel(const SimStreets& streets, double slip,
+                            const std::vector<Eigen::Isometry3d>& T_world_sensor_truth,
+                            std::vector<Eigen::Isometry3d>* T_odom_sensor);
+
 }  // namespace certislam::slam

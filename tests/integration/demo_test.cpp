@@ -1,4 +1,4 @@
-// `certislam demo` end to end: the real binary on the default simulated two-robot mission (the
+// `certislam demo` end to end: the real binary on the city two-robot mission (the
 // claim of Table I; a shorter mission has too few rendezvous to show it) writes every file (TUM
 // trajectories, g2o, PLY, report.json, SVG), the JSON has the keys, and certified RBCD
 // from the actor graph beats odometry and the one-time alignment for every robot, certified;
@@ -41,8 +41,9 @@ class Demo : public ::testing::Test {
                                          ("certislam_demo_" + std::to_string(getpid())));
         std::filesystem::remove_all(*dir_);
         run_ = new testing::ShellResult(testing::Shell(
-            std::string(CERTISLAM_BINARY) + " demo --robots " + std::to_string(kRobots) +
-            " --voxel 1.0 --actors-timeout 240 --quiet --json --out " + dir_->string()));
+            std::string(CERTISLAM_BINARY) + " demo --scenario city --robots " +
+            std::to_string(kRobots) + " --voxel 1.0 --actors-timeout 240 --quiet --json --out " +
+            dir_->string()));
     }
     static void TearDownTestSuite() {
         std::filesystem::remove_all(*dir_);
@@ -138,9 +139,10 @@ TEST_F(Demo, WritesTrajectoriesGraphMeshAndPlot) {
 TEST(DemoOptions, KeyframesFlagShortensTheMission) {
     const auto dir = std::filesystem::temp_directory_path() /
                      ("certislam_demo_short_" + std::to_string(getpid()));
-    const auto run = testing::Shell(std::string(CERTISLAM_BINARY) + " demo --keyframes " +
-                                    std::to_string(kShortKeyframes) +
-                                    " --voxel 0 --pipeline --quiet --json --out " + dir.string());
+    const auto run =
+        testing::Shell(std::string(CERTISLAM_BINARY) + " demo --scenario city --keyframes " +
+                       std::to_string(kShortKeyframes) +
+                       " --voxel 0 --pipeline --quiet --json --out " + dir.string());
     std::filesystem::remove_all(dir);
     ASSERT_EQ(run.exit_code, 0) << run.out;
     const auto j = nlohmann::json::parse(run.out);

@@ -13,6 +13,7 @@
 #include "actors/pose_graph_node.h"
 #include "bin/command.h"
 #include "bin/config/team_config.h"
+#include "bin/progress.h"
 #include "bin/stop_within.h"
 #include "bin/verdict.h"
 #include "transport/curve.h"
@@ -69,6 +70,32 @@ int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
     return done ? kExitDone : kExitNotCertified;
 }
 
+/// The CURVE allow-list of the team's public keys (null without CURVE).
+std::unique_ptr<transport::ZapAuthenticator> MakeZap(zmq::context_t& context,
+                                                     const actors::TeamWiring& wiring) {
+    if (!wiring.own_keys) return nullptr;
+    std::map<std::string, std::uint32_t> allowed;
+    for (const auto& [robot, key] : wiring.public_keys) allowed[key] = robot;
+    return std::make_unique<transport::ZapAuthenticator>(context, allowed);
+}
+
+/// The report's counters of the robot's actors (bytes by actor, matcher, certifier).
+void AddActorCounters(actors::RobotNode& node,
+                      const std::map<std::string, std::uint64_t>& bytes_by_actor,
+                      nlohmann::json* report) {
+    (*report)["bytes_sent_by_actor"] = bytes_by_actor;
+    const actors::LoopMatcherActor& matcher = node.Matcher();
+    (*report)["matcher"] = {{"verified", matcher.Verified()},
+                            {"rejected", matcher.Rejected()},
+                            {"clouds_requested", matcher.CloudsRequested()},
+                            {"skipped_by_gate", matcher.Skipped()}};
+    const actors::CertifierActor& certifier = node.Certifier();
+    (*report)["certifier"] = {{"rounds", certifier.Rounds()},
+                              {"lanczos_steps", certifier.LanczosSteps()},
+                              {"settled_skips", certifier.SettledSkips()},
+                              {"fallbacks", certifier.Fallbacks()}};
+}
+
 int RunRobot(int argc, char** argv) {
     CLI::App app{"One robot of a configuration; peers over tcp (CURVE with keys)"};
     app.name("certislam robot");
@@ -84,6 +111,8 @@ int RunRobot(int argc, char** argv) {
     std::string log_dir;
     app.add_option("--log-dir", log_dir, "durable log folder (overrides the config's log_dir)");
     app.add_flag("--json", json, "print the report as JSON");
+    double progress_s = 2.0, snapshot_s = 5.0;
+    AddProgressOptions(app, "robot<K>.tum and robot<K>.report.json", &progress_s, &snapshot_s);
     CLI11_PARSE(app, argc, argv);
 
     const auto start = std::chrono::steady_clock::now();
@@ -93,24 +122,27 @@ int RunRobot(int argc, char** argv) {
         const actors::TeamWiring wiring = TcpWiring(config, id);
         const TeamSource source(config.source, config.robots);
         zmq::context_t context;
-        std::unique_ptr<transport::ZapAuthenticator> zap;
-        if (wiring.own_keys) {
-            std::map<std::string, std::uint32_t> allowed;
-            for (const auto& [robot, key] : wiring.public_keys) allowed[key] = robot;
-            zap = std::make_unique<transport::ZapAuthenticator>(context, allowed);
-        }
+        const auto zap = MakeZap(context, wiring);
         if (config.source.kind == SourceConfig::Kind::kPoseGraph) {
             return RunPoseGraphRobot(context, wiring, config, id, timeout_s, json);
         }
         const actors::RobotNodeConfig node_config = NodeConfigFor(config, id);
         actors::RobotNode node(context, wiring, source.For(id), node_config);
         node.Start();
-        const auto deadline = start + std::chrono::duration<double>(timeout_s);
-        bool done = false;
-        while (!done && std::chrono::steady_clock::now() < deadline) {
-            std::this_thread::sleep_for(std::chrono::milliseconds(50));
-            done = node.Done();
-        }
+        const auto states = [&] { return std::vector<actors::SolverSnapshot>{node.Snapshot()}; };
+        Progress progress(
+            "certislam robot " + std::to_string(id), MakeProgressConfig(progress_s, snapshot_s),
+            [&] {
+                if (out_dir.empty()) return;
+                const std::string now = WriteTeamOutputs(
+                    out_dir, {id}, states(), source, node.BytesSentToPeers(),
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                    "");
+                std::ofstream(out_dir + "/robot" + std::to_string(id) + ".report.json")
+                    << now << "\n";
+            });
+        const bool done =
+            WaitWithProgress([&] { return node.Done(); }, start, timeout_s, &progress, states);
         const double seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const auto snapshot = node.Snapshot();
@@ -121,17 +153,7 @@ int RunRobot(int argc, char** argv) {
         node.RequestStop();
         auto report = nlohmann::json::parse(
             WriteTeamOutputs(out_dir, {id}, {snapshot}, source, bytes, seconds, ""));
-        report["bytes_sent_by_actor"] = bytes_by_actor;
-        const actors::LoopMatcherActor& matcher = node.Matcher();
-        report["matcher"] = {{"verified", matcher.Verified()},
-                             {"rejected", matcher.Rejected()},
-                             {"clouds_requested", matcher.CloudsRequested()},
-                             {"skipped_by_gate", matcher.Skipped()}};
-        const actors::CertifierActor& certifier = node.Certifier();
-        report["certifier"] = {{"rounds", certifier.Rounds()},
-                               {"lanczos_steps", certifier.LanczosSteps()},
-                               {"settled_skips", certifier.SettledSkips()},
-                               {"fallbacks", certifier.Fallbacks()}};
+        AddActorCounters(node, bytes_by_actor, &report);
         if (!mesh.is_null()) report["mesh"] = mesh;
         const std::string text = report.dump(2);
         if (!out_dir.empty()) {

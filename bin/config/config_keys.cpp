@@ -245,7 +245,6 @@ std::vector<ConfigKey> TopKeys() {
 
 std::vector<ConfigKey> SourceKeys() {
     return {
-        // source
         Choice<Kind>(
             "source.kind", [](TeamConfig & c, int) -> auto& { return c.source.kind; },
             {{"simulator", Kind::kSimulator},
@@ -309,6 +308,11 @@ std::vector<ConfigKey> SourceKeys() {
             "source.sequences.<robot>.calib",
             [](TeamConfig & c, int r) -> auto& { return c.source.kitti[r].calib; },
             "KITTI calibration file with a Tr: line", "kitti"),
+    };
+}
+
+std::vector<ConfigKey> SplitSourceKeys() {
+    return {
         FilePath(
             "source.path", [](TeamConfig & c, int) -> auto& { return c.source.split_path; },
             "the SC-LIO-SAM folder dealt out to the robots in turn", "split"),
@@ -484,8 +488,8 @@ std::vector<ConfigKey> MappingAndNetworkKeys() {
 const std::vector<ConfigKey>& TeamConfigKeys() {
     static const std::vector<ConfigKey> keys = [] {
         std::vector<ConfigKey> all;
-        for (auto part : {TopKeys(), SourceKeys(), PoseGraphSourceKeys(), SolverAndCertifierKeys(),
-                          MatcherKeys(), MappingAndNetworkKeys()}) {
+        for (auto part : {TopKeys(), SourceKeys(), SplitSourceKeys(), PoseGraphSourceKeys(),
+                          SolverAndCertifierKeys(), MatcherKeys(), MappingAndNetworkKeys()}) {
             for (auto& key : part) all.push_back(std::move(key));
         }
         return all;

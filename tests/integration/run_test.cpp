@@ -10,6 +10,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -157,6 +158,26 @@ TEST_F(Run, SimulatedTeamReportsOneCertifiedObjectiveWithItsProvenBound) {
     EXPECT_LE((objective - lower) / objective, kMaxRelativeBound);
     // One X, one graph: the duality gap is tr(X S X^T) >= -eta d n, tiny against f.
     EXPECT_GE(report.at("duality_gap").get<double>(), -kMaxRelativeBound * objective);
+}
+
+TEST_F(Run, ShowsProgressAndWritesSnapshotsBeforeItEnds) {
+    // A mission that runs past its 8 s timeout: after 4 s its report and trajectories are
+    // already in --out (snapshots), and stderr has had progress lines.
+    const std::string config = Write("long.yaml",
+                                     "robots: [0, 1]\nsource: {kind: simulator, seed: 1, "
+                                     "keyframe_spacing_m: 0.5}\nmapping: {enabled: false}\n");
+    const std::string out = (dir_ / "snap").string();
+    const auto run = testing::Shell(
+        "(" + Binary() + " run " + config + " --timeout 8 --progress 1 --snapshot 1 --out " + out +
+        " > " + (dir_ / "stdout").string() + " 2> " + (dir_ / "stderr").string() +
+        " &) ; sleep 4; test -f " + out + "/report.json && test -f " + out +
+        "/robot1.tum && echo SNAPSHOT-SEEN; sleep 6");
+    EXPECT_NE(run.out.find("SNAPSHOT-SEEN"), std::string::npos) << run.out;
+    std::ifstream err(dir_ / "stderr");
+    const std::string progress((std::istreambuf_iterator<char>(err)), {});
+    EXPECT_NE(progress.find("certislam run: 0/2 robots certified, "), std::string::npos)
+        << progress;
+    EXPECT_NE(progress.find(" block updates, last verdict: "), std::string::npos) << progress;
 }
 
 TEST_F(Run, KeyframeFolderPerRobotIsRead) {

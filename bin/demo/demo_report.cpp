@@ -3,6 +3,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bin/command.h"
+
 namespace certislam::bin {
 namespace {
 
@@ -41,6 +43,7 @@ DemoLocalSearch LocalSearchReport(const std::string& start, const certify::Local
 
 nlohmann::json DemoReportJson(const DemoReport& report) {
     nlohmann::json j;
+    j["schema_version"] = kSchemaVersion;
     j["robots"] = nlohmann::json::array();
     for (const auto& r : report.robots) {
         j["robots"].push_back({{"id", r.id},

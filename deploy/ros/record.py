@@ -110,7 +110,7 @@ def main():
             if r.first_loop_wall is not None and r.first_path_after_loop_wall is not None:
                 entry["first_path_after_loop_s"] = r.first_path_after_loop_wall - r.first_loop_wall
         out["robots"][str(k)] = entry
-        ok = ok and entry["path_length"] > 0 and entry["verdict"] == "CERTIFICATE_VERDICT_CERTIFIED"
+        ok = ok and entry["path_length"] > 0 and entry["verdict"] == "certified"
     out["ok"] = ok
     print(json.dumps(out), flush=True)
     rospy.signal_shutdown("done")

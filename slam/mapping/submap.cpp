@@ -48,7 +48,9 @@ bool TsdfMap::OverBudget() {
     if (budget_bytes <= 0.0 || static_cast<double>(Budget().memory_bytes) <= budget_bytes) {
         return false;
     }
-    if (budget_.coarsenings >= config_.max_coarsening) {
+    constexpr double kLargestVoxel = 5.0;  // TsdfConfig::Validate's upper limit
+    if (budget_.coarsenings >= config_.max_coarsening ||
+        budget_.voxel_size_m * 2.0 > kLargestVoxel) {
         ++budget_.skipped_scans;
         return true;
     }

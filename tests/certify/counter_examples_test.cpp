@@ -1,8 +1,8 @@
 // The certificate's counter-example suite (issue 14): every point that is not a proven optimum
 // is refused, and a bound is printed only where S + eta D was shown PSD. Each case is real: an
 // LM local minimum of a sphere with large rotation noise (as SE-Sync's sphere_bignoise), the
-// twisted-cycle saddle, zero and stale multipliers, a non-critical point, and a cycle whose
-// optimum is known in closed form.
+// twisted-cycle saddle, zero and stale multipliers, a non-critical point, a cycle whose
+// optimum is known in closed form, and a consistent cycle whose optimum is 0.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -182,6 +182,29 @@ TEST(CounterExamples, ClosedFormCycleIsCertifiedWithTheExactBound) {
     EXPECT_GE(cert.lower_bound, f_star * (1.0 - kRelativeGap));
     EXPECT_LE(cert.relative_suboptimality_bound, kRelativeGap);
     EXPECT_STREQ(VerdictName(cert.status), "certified");
+}
+
+TEST(CounterExamples, ConsistentCycleWithZeroOptimumIsCertified) {
+    // A square whose one side is 1 um too long: f* ~ 1e-12, below the rounding noise of f(X)
+    // (||Q|| ||X||^2 1e-12), so a relative bound means nothing and the dual bound (clamped at
+    // f* >= 0) cannot reach 1e-6 of f; a bound within f's rounding noise proves optimality.
+    const int n = 4;
+    slam::PoseGraph graph;
+    graph.d = 2;
+    graph.n = n;
+    for (int k = 0; k < n; ++k) {
+        graph.edges.push_back(testing::Edge(k, (k + 1) % n, testing::Rot(2, std::numbers::pi / 2),
+                                            Eigen::Vector2d(k == 0 ? 1.0 + 1e-6 : 1.0, 0.0), 10.0,
+                                            1.0));
+    }
+    const StaircaseResult solved =
+        SolveCertified(graph, slam::ContiguousPartition(n, 1),
+                       slam::LiftToRank(slam::ChordalInitialization(graph), 2));
+    ASSERT_EQ(solved.status, StaircaseResult::Status::kCertified) << solved.certificate.reason;
+    EXPECT_LT(solved.certificate.objective, 1e-10);
+    EXPECT_GT(solved.certificate.objective, 0.0);
+    EXPECT_TRUE(solved.certificate.has_bound);
+    EXPECT_STREQ(VerdictName(solved.certificate.status), "certified");
 }
 
 }  // namespace

@@ -74,6 +74,7 @@ TEST_F(Demo, ReportHasTheIssueKeysAndCertifiedBeatsTheBaselines) {
     EXPECT_TRUE(j["certified"].get<bool>());
     // One certified objective with the bound the certificate proved for it.
     EXPECT_EQ(j["verdict"].get<std::string>(), "certified");
+    EXPECT_EQ(j["schema_version"].get<int>(), 1);
     ASSERT_TRUE(j.contains("lower_bound")) << "certified without a proven bound";
     EXPECT_LE(j["lower_bound"].get<double>(), j["objective"].get<double>());
     EXPECT_LE(j["relative_suboptimality_bound"].get<double>(), 1e-6);

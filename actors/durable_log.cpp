@@ -42,13 +42,20 @@ std::string FirstDifference(const std::string& logged, const std::string& ours) 
         if (!more_a && !more_b) return "";
         if (!more_a) la = "(nothing)";
         if (!more_b) lb = "(nothing)";
-        if (la != lb || !more_a || !more_b) return "'" + la + "' in the log, '" + lb + "' now";
+        if (la != lb || !more_a || !more_b) {
+            std::string text = "'";
+            text += la;
+            text += "' in the log, '";
+            text += lb;
+            text += "' now";
+            return text;
+        }
     }
 }
 
 std::string MoveAside(const std::string& path) {
     for (int n = 1;; ++n) {
-        const std::string target = path + ".stale-" + std::to_string(n);
+        std::string target = path + ".stale-" + std::to_string(n);
         if (!std::filesystem::exists(target)) {
             std::filesystem::rename(path, target);
             return target;

@@ -38,9 +38,11 @@ PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs
                                      const PoseGraphNodeConfig& config,
                                      std::chrono::duration<double> timeout) {
     std::vector<int> robots;
+    robots.reserve(graphs.size());
     for (const auto& g : graphs) robots.push_back(g.robot);
     zmq::context_t context;
     std::vector<std::unique_ptr<PoseGraphNode>> nodes;
+    nodes.reserve(graphs.size());
     for (const auto& g : graphs) {
         nodes.push_back(
             std::make_unique<PoseGraphNode>(context, InprocWiring(g.robot, robots), g, config));

@@ -63,6 +63,7 @@ int RunTeam(const TeamConfig& config, const RunOptions& o,
     };
     const auto states = [&] {
         std::vector<actors::SolverSnapshot> now;
+        now.reserve(nodes.size());
         for (auto& node : nodes) now.push_back(node->Snapshot());
         return now;
     };

@@ -15,6 +15,7 @@ bool IsOdometry(const slam::LoopClosure& e) {
 
 std::vector<int> PosesPerRobot(const std::vector<std::vector<slam::Keyframe>>& robots) {
     std::vector<int> poses;
+    poses.reserve(robots.size());
     for (const auto& r : robots) poses.push_back(static_cast<int>(r.size()));
     return poses;
 }

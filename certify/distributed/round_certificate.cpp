@@ -92,6 +92,7 @@ DistributedCertificate CertifyDistributed(const slam::PoseGraph& graph, const Ei
     settings.eta_relative = config.eta_relative;
     settings.gradient_tolerance_relative = config.gradient_tolerance_relative;
     std::vector<LocalCertificateProblem> problems;
+    problems.reserve(static_cast<size_t>(partition.num_robots()));
     for (int k = 0; k < partition.num_robots(); ++k) {
         problems.push_back(LocalProblemOf(graph, X, partition, k));
     }

@@ -33,6 +33,7 @@ struct SolveOptions {
     bool quiet = false;
     bool distributed = false;
     double timeout_s = 600.0;
+    double max_relative_bound = certify::CertificateConfig{}.max_relative_bound;
 };
 
 double PeakRssMb() {
@@ -142,6 +143,8 @@ void AddOptions(CLI::App& app, SolveOptions& o) {
                    "write the solution (.g2o, .tum or .kitti; pose 0 where the input has it)");
     app.add_flag("--json", o.json, "print one JSON object on stdout");
     app.add_flag("--quiet", o.quiet, "no progress lines on stderr");
+    app.add_option("--max-relative-bound", o.max_relative_bound,
+                   "certified needs a relative suboptimality bound at most this, in (0, 1)");
     app.add_flag("--distributed", o.distributed,
                  "each robot its own solver and certifier actors over inproc sockets (3D graphs)");
     app.add_option("--timeout", o.timeout_s, "--distributed: give up after this many seconds")
@@ -153,6 +156,11 @@ int RunSolve(int argc, char** argv) {
     CLI::App app{"Certifiably optimal pose-graph optimisation (RBCD + dual certificate)"};
     AddOptions(app, o);
     CLI11_PARSE(app, argc, argv);
+    if (!(o.max_relative_bound > 0.0 && o.max_relative_bound < 1.0)) {
+        std::fprintf(stderr, "certislam solve: error: --max-relative-bound: %g is not in (0, 1)\n",
+                     o.max_relative_bound);
+        return kExitUsage;
+    }
     if (o.distributed && (o.method != "rbcd" || o.robust || o.rank > 0 || !o.out.empty())) {
         std::fprintf(stderr,
                      "certislam solve: error: --distributed: no --method lm, --robust, "
@@ -171,7 +179,8 @@ int RunSolve(int argc, char** argv) {
     }
     const slam::PoseGraph& graph = read.graph;
     if (o.distributed) {
-        return RunDistributedSolve(graph, {o.file, o.robots, o.timeout_s, o.json});
+        return RunDistributedSolve(graph,
+                                   {o.file, o.robots, o.timeout_s, o.json, o.max_relative_bound});
     }
     certify::PoseGraphSolverConfig config;
     config.method = o.method == "lm" ? certify::PoseGraphSolverConfig::Method::kLm
@@ -179,6 +188,7 @@ int RunSolve(int argc, char** argv) {
     config.robots = o.robots > 0 ? o.robots : (std::filesystem::is_directory(o.file) ? 0 : 1);
     config.rank = o.rank;
     config.robust = o.robust;
+    config.staircase.certificate.max_relative_bound = o.max_relative_bound;
     auto last = std::chrono::steady_clock::now() - std::chrono::hours(1);
     const auto progress = [&](const std::string& stage, int rank, double cost, double grad,
                               double seconds) {

@@ -88,6 +88,7 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
     }
     actors::PoseGraphNodeConfig config;
     config.quiet = kQuiet;
+    config.certifier.certificate.max_relative_bound = o.max_relative_bound;
     const actors::PoseGraphTeamResult result =
         actors::RunPoseGraphTeam(graphs, config, std::chrono::duration<double>(o.timeout_s));
     nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));

@@ -17,6 +17,7 @@ struct DistributedSolveOptions {
     int robots = -1;         ///< contiguous robots; -1: the graph's own robots (`graph.ids`)
     double timeout_s = 600;  ///< give up (not certified) after this long
     bool json = false;       ///< one JSON object on stdout
+    double max_relative_bound = 1e-6;  ///< certified needs a relative bound at most this
 };
 
 /// The report of a pose-graph team run (cost, verdict, team rounds, bytes between robots by

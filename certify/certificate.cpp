@@ -163,9 +163,12 @@ void FinishBound(const CertificateQuantities& q, const CertificateConfig& config
     }
     if (result->relative_suboptimality_bound > config.max_relative_bound) {
         result->status = CertificateResult::Status::kInconclusive;
-        result->reason = "S + eta D is PSD but the proven relative suboptimality bound " +
-                         std::to_string(result->relative_suboptimality_bound) + " exceeds " +
-                         std::to_string(config.max_relative_bound);
+        char text[128];
+        std::snprintf(text, sizeof(text),
+                      "S + eta D is PSD but the proven relative suboptimality bound %.3g exceeds "
+                      "%.3g",
+                      result->relative_suboptimality_bound, config.max_relative_bound);
+        result->reason = text;
         return;
     }
     result->status = CertificateResult::Status::kCertified;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -39,9 +40,11 @@ void SetCertificate(const CertificateResult& certificate, double max_relative_bo
     if (result->status == Result::Status::kCertified &&
         result->relative_suboptimality_bound > max_relative_bound) {
         result->status = Result::Status::kInconclusive;
-        result->reason = "the rounded poses' relative suboptimality bound " +
-                         std::to_string(result->relative_suboptimality_bound) + " exceeds " +
-                         std::to_string(max_relative_bound);
+        char text[128];
+        std::snprintf(text, sizeof(text),
+                      "the rounded poses' relative suboptimality bound %.3g exceeds %.3g",
+                      result->relative_suboptimality_bound, max_relative_bound);
+        result->reason = text;
     }
 }
 

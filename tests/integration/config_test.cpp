@@ -57,6 +57,8 @@ TEST_F(Config, MisspeltKeysFailNamingFileLineAndKeyPath) {
          "bad.yaml:3: network.x: must be a robot id"},
         {"robots: [0, 1]\nsource: {kind: simulator}\nmapping: {team_map: everyone}\n",
          "bad.yaml:3: mapping.team_map: \"everyone\" is not one of anchor, all, none"},
+        {"robots: [0, 1]\nsource: {kind: simulator}\ncertifier: {max_relative_bound: 1.5}\n",
+         "bad.yaml:3: certifier.max_relative_bound: 1.5 is out of range (0, 1)"},
     };
     for (const auto& c : cases) {
         const auto result = Check(Write("bad.yaml", c.yaml));

@@ -74,6 +74,24 @@ TEST(SolveCommand, LmBaselineIsJudgedByTheCertificate) {
     }
 }
 
+// The same solution, judged against a relative bound no floating-point run can prove.
+TEST(SolveCommand, MaxRelativeBoundIsTheCertifiedThreshold) {
+    const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " solve " + TinyGrid() +
+                                " --max-relative-bound 1e-15 --json 2>/dev/null");
+    EXPECT_NE(r.exit_code, 0);
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_FALSE(j["certified"].get<bool>());
+    EXPECT_EQ(j["verdict"].get<std::string>(), "inconclusive");
+    EXPECT_GT(j["relative_suboptimality_bound"].get<double>(), 1e-15);
+    EXPECT_NE(j["reason"].get<std::string>().find("exceeds 1e-15"), std::string::npos) << j;
+    for (const char* bad : {"0", "1", "-1e-6"}) {
+        const ShellResult b = Shell(std::string(CERTISLAM_BINARY) + " solve " + TinyGrid() +
+                                    " --max-relative-bound " + bad + " 2>&1");
+        EXPECT_NE(b.exit_code, 0) << bad;
+        EXPECT_NE(b.out.find("--max-relative-bound"), std::string::npos) << b.out;
+    }
+}
+
 TEST(SolveCommand, WritesTheSolutionAndAProgressLine) {
     const std::string out = TempPath("tiny_solved.g2o");
     std::filesystem::remove(out);

@@ -147,17 +147,18 @@ void FinishBound(const CertificateQuantities& q, const CertificateConfig& config
                  CertificateResult* result) {
     // Relative to f(X) floored at its own rounding noise (f* = 0 graphs).
     const double noise = kRoundingNoise * result->q_norm * q.x_norm;
-    const double scale = std::max(result->objective, noise * q.x_norm);
+    result->objective_noise = noise * q.x_norm;
+    const double scale = std::max(result->objective, result->objective_noise);
     result->relative_suboptimality_bound = result->suboptimality_bound / scale;
     // f* >= 0 (a sum of squares), so f(X) - f* <= f(X): where f(X) itself is within its rounding
     // noise of 0 (a tree, kitti_08: f* = 0) X is optimal to within that noise, though no bound
     // relative to f(X) can be proven.
-    if (result->objective <= noise * q.x_norm &&
+    if (result->objective <= result->objective_noise &&
         result->relative_suboptimality_bound > config.max_relative_bound) {
         result->status = CertificateResult::Status::kCertified;
         char text[96];
         std::snprintf(text, sizeof(text), "the bound %.3g is within f's rounding noise %.3g",
-                      result->suboptimality_bound, noise * q.x_norm);
+                      result->suboptimality_bound, result->objective_noise);
         result->reason = text;
         return;
     }

@@ -74,6 +74,7 @@ struct CertificateResult {
     double lower_bound = 0.0;          ///< max(tr(Lambda) - bound_eta d n, 0) <= f*
     double suboptimality_bound = 0.0;  ///< f(X) - lower_bound >= f(X) - f*
     /// suboptimality_bound / f(X) (f(X) floored at its rounding noise, so f* = 0 gives 0)
+    double objective_noise = 0.0;  ///< rounding noise of f(X) (relative bounds floor f(X) here)
     double relative_suboptimality_bound = 0.0;
     double lambda_min = 0.0;           ///< Rayleigh quotient v^T S v of the computed eigenvector
     double lambda_min_relative = 0.0;  ///< lambda_min / ||Q||

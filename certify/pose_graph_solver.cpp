@@ -34,10 +34,13 @@ void SetCertificate(const CertificateResult& certificate, double max_relative_bo
     if (!certificate.has_bound) return;
     result->lower_bound = certificate.lower_bound;
     result->suboptimality_bound = std::max(result->cost - certificate.lower_bound, 0.0);
-    result->relative_suboptimality_bound = result->cost > 0.0
-                                               ? result->suboptimality_bound / result->cost
-                                               : certificate.relative_suboptimality_bound;
+    // Relative to the cost floored at f's rounding noise, as the certificate's own bound: rounded
+    // poses of an f* = 0 graph (a tree, kitti_08) cost that noise, and f* >= 0 bounds their gap.
+    const double scale = std::max(result->cost, certificate.objective_noise);
+    result->relative_suboptimality_bound = scale > 0.0 ? result->suboptimality_bound / scale
+                                                       : certificate.relative_suboptimality_bound;
     if (result->status == Result::Status::kCertified &&
+        result->cost > certificate.objective_noise &&
         result->relative_suboptimality_bound > max_relative_bound) {
         result->status = Result::Status::kInconclusive;
         char text[128];

@@ -7,7 +7,10 @@
 # Usage: deploy/ros_demo.sh [OUT_DIR]
 #   env: BUILD_DIR (build), RATE (rosbag play rate, 2), KEYFRAMES (per robot, 150),
 #        TIMEOUT (recorder's limit, seconds, 240), COMPARE (1: also `certislam run` the same
-#        team and report the largest position difference of the paths; 0: skip)
+#        team on the same bags and report the largest position difference of the paths; 0: skip),
+#        SCREENSHOT (a .png path: also run rviz with deploy/ros/certislam.rviz on a virtual X
+#        display (Xvfb) and save its window at the end of the bags; needs xvfb, rviz, x11-apps,
+#        netpbm)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${BUILD_DIR:-$root/build}"
@@ -61,7 +64,7 @@ cat >"$out/team.json" <<JSON
     "cloud_topic": "/robot{robot}/lio_sam/mapping/cloud_registered_raw",
     "odometry_topic": "/robot{robot}/lio_sam/mapping/odometry",
     "select_keyframes": false,
-    "end_after_silence_s": 3.0,
+    "end_after_silence_s": 10.0,
     "mesh_period_s": 5.0
   }
 }
@@ -86,21 +89,44 @@ for k in 0 1; do
     "$node" "$out/team.json" --id "$k" --out "$out" >"$out/node$k.json" 2>"$out/node$k.log" &
     pids+=($!)
 done
+if [ -n "${SCREENSHOT:-}" ]; then
+    display=":$((90 + $$ % 100))"
+    Xvfb "$display" -screen 0 1400x900x24 >"$out/xvfb.log" 2>&1 &
+    pids+=($!)
+    sleep 1
+    DISPLAY="$display" rviz -d "$root/deploy/ros/certislam.rviz" >"$out/rviz.log" 2>&1 &
+    pids+=($!)
+fi
 /usr/bin/python3 "$root/deploy/ros/record.py" --robots 0 1 --truth "$out" \
     --ready "$out/recorder.ready" --timeout "$timeout_s" >"$out/record.json" 2>"$out/record.log" &
 recorder=$!
 for _ in $(seq 100); do [ -e "$out/recorder.ready" ] && break; sleep 0.2; done
 sleep 2  # the nodes' and recorder's subscriptions connect
 rosbag play --clock -q -r "$rate" "$out/robot0.bag" "$out/robot1.bag" >"$out/play.log" 2>&1
+if [ -n "${SCREENSHOT:-}" ]; then
+    sleep 8  # the last paths and a mesh period reach rviz
+    xwd -root -display "$display" | xwdtopnm 2>/dev/null | pnmtopng >"$SCREENSHOT"
+fi
 status=0
 wait "$recorder" || status=$?
 cleanup
 pids=()
 end_s=$(date +%s.%N)
-# The same team in one process on the simulator's keyframes (`certislam run`), to compare with.
+# The same team in one process on the same keyframes (`certislam run` reading the two bags the
+# nodes were played), to compare with.
 if [ "${COMPARE:-1}" != 0 ]; then
-    "$certislam" run "$out/team.json" --out "$out/run" --json >"$out/run.json" 2>"$out/run.log" ||
-        true
+    /usr/bin/python3 - "$out" <<'PY'
+import json, sys
+out = sys.argv[1]
+team = json.load(open(f"{out}/team.json"))
+ros = team.pop("ros")
+team.pop("network")
+team["source"] = {"kind": "rosbag", "paths": {k: f"robot{k}.bag" for k in ("0", "1")},
+                  "cloud_topic": ros["cloud_topic"], "odometry_topic": ros["odometry_topic"]}
+json.dump(team, open(f"{out}/run_team.json", "w"), indent=2)
+PY
+    "$certislam" run "$out/run_team.json" --out "$out/run" --json --progress 0 \
+        >"$out/run.json" 2>"$out/run.log" || true
 fi
 /usr/bin/python3 - "$out" "$start_s" "$end_s" "$rate" <<'PY'
 import json, math, os, sys
@@ -134,6 +160,12 @@ except Exception as e:
 rec["rate"] = rate
 rec["wall_time_s"] = round(end - start, 2)
 rec["bags"] = json.load(open(f"{out}/bags.json"))
+for k, robot in rec.get("robots", {}).items():
+    # Keyframes the bag played that the node never took in (ROS queues or ingest drops).
+    played = rec["bags"].get(k, {}).get("keyframes")
+    got = (robot.get("keyframes") or {}).get("selected")
+    if played is not None and got is not None:
+        robot["keyframes_lost"] = played - got
 rec["vs_certislam_run"] = compare(rec)
 print(json.dumps(rec))
 PY

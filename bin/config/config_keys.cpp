@@ -80,11 +80,11 @@ std::vector<ConfigKey> SourceKeys() {
         Str(
             "source.cloud_topic",
             [](TeamConfig & c, int) -> auto& { return c.source.rosbag.cloud_topic; },
-            "sensor_msgs/PointCloud2 topic of the bag", "rosbag"),
+            "sensor_msgs/PointCloud2 topic of the bag ({robot}: the robot's id)", "rosbag"),
         Str(
             "source.odometry_topic",
             [](TeamConfig & c, int) -> auto& { return c.source.rosbag.odometry_topic; },
-            "nav_msgs/Odometry topic of the bag", "rosbag"),
+            "nav_msgs/Odometry topic of the bag ({robot}: the robot's id)", "rosbag"),
         Num<double>(
             "source.max_stamp_gap_s",
             [](TeamConfig & c, int) -> auto& { return c.source.rosbag.max_stamp_gap_s; },

@@ -100,6 +100,14 @@ slam::Partition RangePartition(const std::string& config_path, const std::vector
 
 }  // namespace
 
+std::string WithRobotId(std::string text, int robot) {
+    const std::string key = "{robot}";
+    for (auto at = text.find(key); at != std::string::npos; at = text.find(key, at)) {
+        text.replace(at, key.size(), std::to_string(robot));
+    }
+    return text;
+}
+
 std::vector<slam::RobotGraph> LoadPoseGraphSource(const std::string& config_path,
                                                   const SourceConfig& config,
                                                   const std::vector<int>& robots) {
@@ -246,8 +254,11 @@ void TeamSource::Load(const SourceConfig& config, const std::vector<int>& robots
         }
         case SourceConfig::Kind::kRosbag:
             for (const int r : robots) {
+                slam::RosbagSourceConfig topics = config.rosbag;
+                topics.cloud_topic = WithRobotId(topics.cloud_topic, r);
+                topics.odometry_topic = WithRobotId(topics.odometry_topic, r);
                 recorded_[r] =
-                    check(slam::ReadRosbagKeyframes(config.paths.at(r), config.rosbag, options));
+                    check(slam::ReadRosbagKeyframes(config.paths.at(r), topics, options));
             }
             truth_kind_ = "the bag's odometry (LIO-SAM estimates, each robot in its own frame)";
             break;

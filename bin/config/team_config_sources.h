@@ -51,6 +51,9 @@ struct SourceConfig {
                                         ///< odometry frame is the world moved by this^r
 };
 
+/// `text` with every "{robot}" replaced by `robot` (per-robot topic names of one template).
+std::string WithRobotId(std::string text, int robot);
+
 /// Checks the `source` keys read from `config_path` against the team `robots` (one entry per
 /// robot where the kind needs it) and derives the rest (T_offset_world, the simulator's team
 /// size). Throws std::runtime_error naming "source.<field>" and the rule.

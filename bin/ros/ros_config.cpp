@@ -11,14 +11,6 @@ namespace {
 
 using nlohmann::json;
 
-std::string WithRobot(std::string s, int robot) {
-    const std::string key = "{robot}";
-    for (auto at = s.find(key); at != std::string::npos; at = s.find(key, at)) {
-        s.replace(at, key.size(), std::to_string(robot));
-    }
-    return s;
-}
-
 struct Reader {
     const json& ros;
     const std::string& path;
@@ -31,7 +23,7 @@ struct Reader {
         if (!ros.at(field).is_string() || ros.at(field).get<std::string>().empty()) {
             Fail(field, "must be a non-empty string");
         }
-        *value = WithRobot(ros.at(field).get<std::string>(), robot);
+        *value = WithRobotId(ros.at(field).get<std::string>(), robot);
     }
     void Number(const char* field, double min, double* value) const {
         if (!ros.contains(field)) return;
@@ -85,8 +77,8 @@ RosNodeConfig LoadRosNodeConfig(const TeamConfig& team, int robot) {
     config.bridge.output_namespace = "/certislam/robot" + std::to_string(robot);
     config.bridge.odom_frame = "robot" + std::to_string(robot) + "/odom";
     if (team.source.kind == SourceConfig::Kind::kRosbag) {
-        config.bridge.cloud_topic = team.source.rosbag.cloud_topic;
-        config.bridge.odometry_topic = team.source.rosbag.odometry_topic;
+        config.bridge.cloud_topic = WithRobotId(team.source.rosbag.cloud_topic, robot);
+        config.bridge.odometry_topic = WithRobotId(team.source.rosbag.odometry_topic, robot);
         config.ingest.max_stamp_gap_s = team.source.rosbag.max_stamp_gap_s;
         config.ingest.cloud_frame = team.source.rosbag.cloud_frame;
     }

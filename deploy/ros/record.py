@@ -110,7 +110,9 @@ def main():
             if r.first_loop_wall is not None and r.first_path_after_loop_wall is not None:
                 entry["first_path_after_loop_s"] = r.first_path_after_loop_wall - r.first_loop_wall
         out["robots"][str(k)] = entry
-        ok = ok and entry["path_length"] > 0 and entry["verdict"] == "certified"
+        # A team, not two lone robots: each node must have accepted an inter-robot loop.
+        ok = (ok and entry["path_length"] > 0 and entry["verdict"] == "certified"
+              and (entry["inter_robot_loops"] or 0) > 0)
     out["ok"] = ok
     print(json.dumps(out), flush=True)
     rospy.signal_shutdown("done")

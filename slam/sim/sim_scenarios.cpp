@@ -47,8 +47,10 @@ void TunnelRendezvous(SimScenario* s) {
     const double p = st.block_pitch_m;
     const double east = st.blocks_x * p;
     const double north = st.blocks_y * p;
+    // Robot 0 sets off westward, robot 1 eastward: their odometry frames differ by a half turn.
     c.routes = {
-        {{0, north},
+        {{p, north},
+         {0, north},
          {0, 0},
          {st.east_loop_x, 0},
          {st.east_loop_x, north},
@@ -62,8 +64,9 @@ void TunnelRendezvous(SimScenario* s) {
          {east, 0}},
     };
     s->description =
-        "robot 0 drives from the city through a 150 m featureless tunnel; robot 1 starts "
-        "inside the tunnel and drives out east, so the robots first share places in the tunnel "
+        "robot 0 sets off west and drives from the city through a 150 m featureless tunnel; "
+        "robot 1 starts inside the tunnel and drives out east (their odometry frames half a "
+        "turn apart), so the robots first share places in the tunnel "
         "(registration degenerate along its axis), later at structured crossings; strong "
         "LiDAR-inertial drift (yaw-rate and vertical-velocity bias random walks), odometry "
         "misses 15 % of the motion in the tunnel";
@@ -86,11 +89,14 @@ void LargeDrift(SimScenario* s) {
     const double north = st.blocks_y * p;
     c.routes = {
         {{0, 0}, {east, 0}, {east, north}, {0, north}, {0, p}, {east, p}},
-        {{east, north}, {east, 2 * p}, {0, 2 * p}, {0, 0}, {2 * p, 0}, {2 * p, north}},
+        // Robot 1 sets off westward, facing away from robot 0's start: its odometry frame is
+        // half a turn from robot 0's, so every pose of the odometry-only guess is far off.
+        {{east, 2 * p}, {0, 2 * p}, {0, 0}, {2 * p, 0}, {2 * p, north}, {east, north}},
     };
     s->description =
         "two robots on long loops around a 4 x 3 block grid, crossing each other's streets in "
-        "both directions; heavy yaw-rate bias (about 25 degrees of rotational drift)";
+        "both directions, setting off half a turn apart; heavy yaw-rate bias (about 25 degrees "
+        "of rotational drift)";
 }
 
 /// Eight robots on seeded random walks over the grid, each starting when the previous ends:

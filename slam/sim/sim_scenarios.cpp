@@ -89,7 +89,7 @@ void LargeDrift(SimScenario* s) {
     const double north = st.blocks_y * p;
     c.routes = {
         // Each robot ends on a street it began on, driving the same way: its own loop closes.
-        {{0, 0}, {east, 0}, {east, north}, {0, north}, {0, p}, {east, p}, {east, north}},
+        {{0, 0}, {east, 0}, {east, north}, {0, north}, {0, 0}, {2 * p, 0}},
         // Robot 1 sets off westward, facing away from robot 0's start: its odometry frame is
         // half a turn from robot 0's, so every pose of the odometry-only guess is far off.
         {{east, 2 * p},

@@ -32,14 +32,14 @@ void City(SimScenario* s) {
 /// SubT-style deployment) and follows the same way out: their first common places are the tunnel,
 /// where registration is degenerate along the axis; later they meet at structured crossings.
 /// LiDAR-inertial drift is strong (yaw-rate and vertical-velocity bias random walks) and the
-/// odometry misses 15 % of the motion along the tunnel (scale error).
+/// odometry misses 8 % of the motion along the tunnel (scale error).
 void TunnelRendezvous(SimScenario* s) {
     SimulatorConfig& c = s->config;
     c.world.tunnel_length_m = 150.0;
     c.world.tunnel_walkway_m = 1.2;  // a real tunnel is not symmetric under a half turn
-    c.tunnel_slip = 0.15;
-    c.drift.yaw_rate_bias_sigma_rad_s = 6e-4;
-    c.drift.yaw_rate_bias_walk_rad_s_sqrt_s = 6e-5;
+    c.tunnel_slip = 0.08;
+    c.drift.yaw_rate_bias_sigma_rad_s = 1.5e-3;
+    c.drift.yaw_rate_bias_walk_rad_s_sqrt_s = 1.5e-4;
     c.drift.vertical_velocity_bias_sigma_m_s = 8e-3;
     c.drift.vertical_velocity_bias_walk_m_s_sqrt_s = 8e-4;
     c.drift.scale_error_sigma = 1e-2;
@@ -47,8 +47,10 @@ void TunnelRendezvous(SimScenario* s) {
     const double p = st.block_pitch_m;
     const double east = st.blocks_x * p;
     const double north = st.blocks_y * p;
+    // Robot 0 sets off westward, robot 1 eastward: their odometry frames differ by a half turn.
     c.routes = {
-        {{0, north},
+        {{p, north},
+         {0, north},
          {0, 0},
          {st.east_loop_x, 0},
          {st.east_loop_x, north},
@@ -62,11 +64,12 @@ void TunnelRendezvous(SimScenario* s) {
          {east, 0}},
     };
     s->description =
-        "robot 0 drives from the city through a 150 m featureless tunnel; robot 1 starts "
-        "inside the tunnel and drives out east, so the robots first share places in the tunnel "
+        "robot 0 sets off west and drives from the city through a 150 m featureless tunnel; "
+        "robot 1 starts inside the tunnel and drives out east (their odometry frames half a "
+        "turn apart), so the robots first share places in the tunnel "
         "(registration degenerate along its axis), later at structured crossings; strong "
         "LiDAR-inertial drift (yaw-rate and vertical-velocity bias random walks), odometry "
-        "misses 15 % of the motion in the tunnel";
+        "misses 8 % of the motion in the tunnel";
 }
 
 /// Two long loops around a larger grid with heavy yaw-rate bias: tens of degrees of rotational
@@ -85,12 +88,23 @@ void LargeDrift(SimScenario* s) {
     const double east = st.blocks_x * p;
     const double north = st.blocks_y * p;
     c.routes = {
-        {{0, 0}, {east, 0}, {east, north}, {0, north}, {0, p}, {east, p}},
-        {{east, north}, {east, 2 * p}, {0, 2 * p}, {0, 0}, {2 * p, 0}, {2 * p, north}},
+        // Each robot ends on a street it began on, driving the same way: its own loop closes.
+        {{0, 0}, {east, 0}, {east, north}, {0, north}, {0, 0}, {2 * p, 0}},
+        // Robot 1 sets off westward, facing away from robot 0's start: its odometry frame is
+        // half a turn from robot 0's, so every pose of the odometry-only guess is far off.
+        {{east, 2 * p},
+         {0, 2 * p},
+         {0, 0},
+         {2 * p, 0},
+         {2 * p, north},
+         {east, north},
+         {east, 2 * p},
+         {2 * p, 2 * p}},
     };
     s->description =
         "two robots on long loops around a 4 x 3 block grid, crossing each other's streets in "
-        "both directions; heavy yaw-rate bias (about 25 degrees of rotational drift)";
+        "both directions, setting off half a turn apart; heavy yaw-rate bias (about 25 degrees "
+        "of rotational drift)";
 }
 
 /// Eight robots on seeded random walks over the grid, each starting when the previous ends:

@@ -1,6 +1,7 @@
 // The named scenarios: known names build missions of the asked size with fixed seeds, the
-// tunnel rendezvous starts robot 1 inside the tunnel, robots start one after another, and the
-// tunnel's odometry slip shortens the along-track motion there.
+// tunnel rendezvous starts robot 1 inside the tunnel, its robots and large-drift's set off half a
+// turn apart, robots start one after another, and the tunnel's odometry slip shortens the
+// along-track motion there.
 #include "slam/sim/sim_scenarios.h"
 
 #include <gtest/gtest.h>
@@ -40,6 +41,18 @@ TEST(SimScenarios, TunnelRendezvousStartsRobotOneInsideTheTunnel) {
     const MissionGenerator generator(s->config);
     EXPECT_TRUE(InTunnel(generator.streets(), generator.T_world_sensor_truth(1, 0).translation()));
     EXPECT_FALSE(InTunnel(generator.streets(), generator.T_world_sensor_truth(0, 0).translation()));
+}
+
+TEST(SimScenarios, TunnelAndLargeDriftRobotsSetOffHalfATurnApart) {
+    constexpr double kMinOffsetRad = 3.0;  // close to pi: the odometry frames face each other
+    for (const char* name : {"tunnel-rendezvous", "large-drift"}) {
+        const auto s = MakeScenario(name, 2, 1);
+        ASSERT_TRUE(s.has_value());
+        const MissionGenerator generator(s->config);
+        const Eigen::Matrix3d R_0_1 =
+            generator.T_world_odom(0).linear().transpose() * generator.T_world_odom(1).linear();
+        EXPECT_GT(Eigen::AngleAxisd(R_0_1).angle(), kMinOffsetRad) << name;
+    }
 }
 
 TEST(SimScenarios, SequentialRobotsStartAfterThePreviousEnds) {

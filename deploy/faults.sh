@@ -107,7 +107,6 @@ fault_sigstop() { # robot 1 stopped for stop_s, then continued
 fault_partition() { # robot 1's link down for partition_s
     if [ "$team_netns" != 1 ]; then
         note="skipped: no network namespaces (not root, no ip netns, or CERTISLAM_NETNS=0)"
-        codes=$(printf '0%.0s,' $(seq "$team_n") | sed 's/,$//')
         return
     fi
     start_team "$dir"

@@ -151,9 +151,9 @@ def certified(run_dir, n):
 
 def row(name, n, run_dir, ref_dir, wall_s, codes, note=""):
     n = int(n)
-    exit_codes = [int(c) for c in codes.split(",")]
+    exit_codes = [int(c) for c in codes.split(",")] if codes else []
     diff = max_difference(run_dir, ref_dir, n)
-    is_certified = certified(run_dir, n) and all(c == 0 for c in exit_codes)
+    is_certified = bool(exit_codes) and certified(run_dir, n) and all(c == 0 for c in exit_codes)
     r = {
         "fault": name,
         "robots": n,
@@ -164,7 +164,8 @@ def row(name, n, run_dir, ref_dir, wall_s, codes, note=""):
         "exit_codes": exit_codes,
     }
     if note.startswith("skipped:"):
-        r.update(healed=None, certified=None, skipped=note[len("skipped:"):].strip())
+        r.update(healed=None, certified=None, exit_codes=None,
+                 skipped=note[len("skipped:"):].strip())
     elif note.startswith("failed:"):
         r.update(healed=False, note=note[len("failed:"):].strip())
     elif note:

@@ -195,8 +195,16 @@ fault_garbage() { # malformed greetings, random bytes and 2^62-byte frames on ev
     note="$(cat "$dir/garbage.json")"
 }
 
+# listen_drops K: connection attempts robot K's kernel dropped from full accept queues so far
+# (TcpExt ListenDrops of its namespace; empty on loopback, where the counter is the host's).
+listen_drops() {
+    [ "$team_netns" = 1 ] || return 0
+    ip netns exec "$team_tag-r$1" nstat -asz TcpExtListenDrops | awk '/ListenDrops/ {print $2}'
+}
+
 fault_flood() { # idle unauthenticated connections held on the anchor's ports through the mission
-    local targets
+    local targets drops
+    drops=$(listen_drops 0)
     mapfile -t targets < <(ports 0 | head -n 2)
     python3 "$tools" flood "$timeout_s" "$flood_per_port" "${targets[@]}" >"$dir/flood.json" &
     local flooder=$! code=0
@@ -209,6 +217,7 @@ fault_flood() { # idle unauthenticated connections held on the anchor's ports th
         note="failed: the flood did not run (exit $code)"
     else
         note="$(cat "$dir/flood.json")"
+        [ -z "$drops" ] || note+=" listen_drops $(($(listen_drops 0) - drops))"
     fi
 }
 
@@ -228,14 +237,20 @@ run_case() {
 
 fault_reference() { start_team "$dir"; wait_team; }
 
+# On exit (also when interrupted): no robot of the campaign left running, no namespace left.
+cleanup() {
+    local p
+    for p in $(jobs -p); do kill -9 "$p" 2>/dev/null || true; done  # this shell's own children
+    team_net_down
+}
+pids=()
 for n in ${FAULTS_ROBOTS:-2 4}; do
     team_init "$n"
-    trap team_net_down EXIT
+    trap cleanup EXIT
     team_net_up
     team_keys "$out/n$n/keys"
     team_json="$out/n$n/team.json"
     team_config "$out/mission.json" "$out/n$n/keys" "$team_json"
-    pids=()
     reference="$out/n$n/reference"
     run_case reference
     if ! tail -n 1 "$rows" | grep -q '"healed": true'; then

@@ -61,7 +61,10 @@ team_net_up() {
 team_net_down() {
     [ "$team_netns" = 1 ] || return 0
     local k
-    for ((k = 0; k < team_n; k++)); do ip netns del "$team_tag-r$k" 2>/dev/null || true; done
+    for ((k = 0; k < team_n; k++)); do
+        ip netns del "$team_tag-r$k" 2>/dev/null || true
+        ip link del "${team_tag}v$k" 2>/dev/null || true  # outlives the namespace while in use
+    done
     ip link del "${team_tag}br" 2>/dev/null || true
 }
 

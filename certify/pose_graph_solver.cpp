@@ -19,6 +19,22 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using Result = PoseGraphSolverResult;
 
+/// The start of the certified solve on GNC's inlier graph: GNC's last iterate or the inlier
+/// graph's own chordal initialisation, whichever costs less on it. GNC's iterate was shaped by the
+/// outliers' early weights and can sit far from the inlier graph's optimum (RBCD can stall there).
+Eigen::MatrixXd InlierStart(const slam::GncResult& gnc, int rank) {
+    const auto Q = slam::ConnectionLaplacian(gnc.kept);
+    try {
+        Eigen::MatrixXd chordal = slam::LiftToRank(slam::ChordalInitialization(gnc.kept), rank);
+        if (chordal.allFinite() && slam::LiftedCost(Q, chordal) < slam::LiftedCost(Q, gnc.X)) {
+            return chordal;
+        }
+    } catch (const std::exception&) {
+        // No chordal start (e.g. a kept graph in several pieces): GNC's iterate it is.
+    }
+    return gnc.X;
+}
+
 double Since(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
 }
@@ -89,8 +105,10 @@ void SolveWithRbcd(const slam::PoseGraph& graph, const PoseGraphSolverConfig& co
         const slam::GncResult gnc = slam::SolveGnc(graph, partition, X0, config.gnc);
         result->solved_graph = gnc.kept;
         result->gnc_iterations = gnc.iterations;
-        X0 = gnc.X;
-        if (progress) progress("gnc", rank, 0.0, 0.0, Since(start));
+        X0 = InlierStart(gnc, rank);
+        if (progress)
+            progress("gnc", rank, slam::LiftedCost(slam::ConnectionLaplacian(gnc.kept), X0), 0.0,
+                     Since(start));
     }
     const slam::PoseGraph& solved = result->solved_graph;
     const StaircaseResult stairs =

@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
-# Fuzzes the envelope decoder, the g2o reader and the PCD reader with libFuzzer (clang, ASan +
-# UBSan), each for a bounded time.
-# Usage: deploy/fuzz.sh [SECONDS]   (default 60 per target; FUZZ_BUILD_DIR overrides build-fuzz/)
+# Fuzzes the untrusted decoders with libFuzzer (clang, ASan + UBSan), each for a bounded time: the
+# envelope decoder, the message bodies the actors accept (actors/convert.h), the durable log
+# reader, the g2o reader and the PCD reader.
+# Usage: deploy/fuzz.sh [SECONDS]   (default 36 per target, five targets; FUZZ_BUILD_DIR
+# overrides build-fuzz/)
 # Builds only the fuzzer in its own clang build folder, writes a seed corpus of real encoded
 # envelopes, fuzzes for SECONDS and exits non-zero when the fuzzer finds a crash, a leak or
 # undefined behaviour (the input is kept in FUZZ_BUILD_DIR/artifacts/).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${FUZZ_BUILD_DIR:-$root/build-fuzz}"
-seconds="${1:-60}"
+seconds="${1:-36}"
 
 "$root/deploy/install-deps.sh"
 
@@ -26,7 +28,8 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
     exit 1
   }
 fi
-cmake --build "$build" -j "${JOBS:-2}" --target fuzz_envelope fuzz_envelope_seeds fuzz_g2o fuzz_pcd
+cmake --build "$build" -j "${JOBS:-2}" --target fuzz_envelope fuzz_envelope_seeds fuzz_g2o fuzz_pcd \
+  fuzz_bodies fuzz_bodies_seeds fuzz_durable_log
 
 seeds="$build/seeds"
 corpus="$build/corpus"
@@ -56,4 +59,16 @@ for reader in g2o pcd; do
   "$build/tests/fuzz/fuzz_$reader" "$build/corpus-$reader" "$build/seeds-$reader" \
     -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=8192 \
     -artifact_prefix="$artifacts/$reader-" -print_final_stats=1
+done
+
+# The message bodies (seeds: one real message per body and wire form) and the durable log
+# reader (seeds: the bodies' seeds are not logs; a log starts empty and grows from there).
+"$build/tests/fuzz/fuzz_bodies_seeds" "$build/seeds-bodies" >/dev/null
+mkdir -p "$build/corpus-bodies" "$build/corpus-durable_log" "$build/seeds-durable_log"
+printf '' >"$build/seeds-durable_log/empty"
+for target in bodies durable_log; do
+  echo "fuzz: $target for ${seconds} s"
+  "$build/tests/fuzz/fuzz_$target" "$build/corpus-$target" "$build/seeds-$target" \
+    -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=65536 \
+    -artifact_prefix="$artifacts/$target-" -print_final_stats=1
 done

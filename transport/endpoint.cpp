@@ -70,6 +70,7 @@ void Endpoint::Configure() {
     socket_.set(zmq::sockopt::rcvhwm, ClampInt(config_.max_queue_messages));
     socket_.set(zmq::sockopt::reconnect_ivl, config_.reconnect_interval_ms);
     socket_.set(zmq::sockopt::handshake_ivl, config_.handshake_timeout_ms);
+    socket_.set(zmq::sockopt::backlog, config_.listen_backlog);
     if (config_.socket_buffer_bytes > 0) {
         socket_.set(zmq::sockopt::sndbuf, config_.socket_buffer_bytes);
         socket_.set(zmq::sockopt::rcvbuf, config_.socket_buffer_bytes);

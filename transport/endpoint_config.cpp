@@ -63,6 +63,9 @@ void EndpointConfig::Validate() const {
     if (handshake_timeout_ms < 0) {
         Reject(*this, "handshake_timeout_ms", std::to_string(handshake_timeout_ms), "must be >= 0");
     }
+    if (listen_backlog <= 0) {
+        Reject(*this, "listen_backlog", std::to_string(listen_backlog), "must be > 0");
+    }
     if (curve) curve->Validate();
     limits.Validate();
     if (shm_threshold_bytes == 0) Reject(*this, "shm_threshold_bytes", "0", "must be positive");

@@ -56,6 +56,10 @@ struct EndpointConfig {
     /// dropped (ZMQ_HANDSHAKE_IVL; libzmq's default is 30 s, which lets idle unauthenticated
     /// connections hold descriptors that long); 0 = no deadline.
     int handshake_timeout_ms = 2000;
+    /// Pending-connection queue of a listening socket (ZMQ_BACKLOG; libzmq's default is 100, which
+    /// a reconnecting flood keeps full, so the kernel drops a peer's SYN and TCP backs off for
+    /// seconds); the kernel caps it at net.core.somaxconn. > 0.
+    int listen_backlog = 4096;
     /// Caps on accepted connections of a socket bound to tcp:// (ConnectionGuard).
     ConnectionCaps connection_caps;
     std::uint32_t robot_id = 0;  ///< this robot, stamped on control messages it sends

@@ -13,7 +13,6 @@ namespace certislam::slam {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr double kWallThicknessM = 0.6;
 
 void Require(bool ok, const char* field, double value, const char* rule) {
     if (!ok) {

@@ -77,19 +77,18 @@ TEST(HostileInput, SolveRefusesNonUnitQuaternionsWithFileAndLine) {
     }
 }
 
-TEST(HostileInput, RobustSolveRejectsA500mLoopAndKeepsOdometry) {
+TEST(HostileInput, RobustSolveRejectsA500mLoopKeepsOdometryAndCertifies) {
     const std::string path =
         Write("outlier.g2o", TinyGridText() +
                                  "EDGE_SE3:QUAT 0 8 500 0 0 0 0 0 1 100 0 0 0 0 0 100 0 "
                                  "0 0 0 100 0 0 0 400 0 0 400 0 400\n");
     const ShellResult r =
         Shell(std::string(CERTISLAM_BINARY) + " solve " + path + " --robust --json 2>/dev/null");
-    // Finished (0: certified, 3: not certified; issue 19 keeps certifying the kept graph open),
-    // not a bad-input or usage error.
-    ASSERT_TRUE(r.exit_code == 0 || r.exit_code == 3) << r.exit_code << ": " << r.out;
+    // The inlier graph GNC kept is solved and certified (exit 0).
+    ASSERT_EQ(r.exit_code, 0) << r.out;
     const auto j = nlohmann::json::parse(r.out);
-    EXPECT_EQ(j["certified"].get<bool>(), r.exit_code == 0) << r.out;
-    EXPECT_TRUE(j["certified"].is_boolean()) << r.out;  // a verdict, no longer a GNC failure
+    EXPECT_TRUE(j["certified"].get<bool>()) << r.out;
+    EXPECT_EQ(j["verdict"].get<std::string>(), "certified") << r.out;
     EXPECT_EQ(j["edges"].get<int>(), 12);
     EXPECT_LT(j["edges_used"].get<int>(), 12);  // the 500 m loop is rejected
     EXPECT_GE(j["edges_used"].get<int>(), 8);   // odometry (8 edges) is kept

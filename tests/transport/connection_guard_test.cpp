@@ -120,5 +120,12 @@ TEST(ConnectionGuard, HandshakeDeadlineIsSetOnEverySocket) {
     EXPECT_EQ(router.socket().get(zmq::sockopt::handshake_ivl), 2000);
 }
 
+TEST(ConnectionGuard, ListenBacklogIsAboveLibzmqsDefault) {
+    zmq::context_t context;
+    Endpoint router(context, Config(Role::kRouter, "tcp://127.0.0.1:*", true));
+    EXPECT_EQ(router.socket().get(zmq::sockopt::backlog), EndpointConfig{}.listen_backlog);
+    EXPECT_GT(router.socket().get(zmq::sockopt::backlog), 100);  // libzmq's default
+}
+
 }  // namespace
 }  // namespace certislam::transport

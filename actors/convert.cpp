@@ -301,6 +301,7 @@ v1::PublicPoses ToProto(const certify::PoseBlocks& poses) {
     out.set_rank_r(static_cast<std::uint32_t>(poses.blocks.rows()));
     out.set_dimension_d(3);
     out.set_staircase_level(static_cast<std::uint32_t>(poses.staircase_level));
+    out.set_team_round(poses.team_round);
     for (const auto& id : poses.ids) *out.add_pose_ids() = ToProto(id);
     // Column-major: block k's r x 4 values are contiguous.
     out.mutable_blocks()->Assign(poses.blocks.data(), poses.blocks.data() + poses.blocks.size());
@@ -323,6 +324,7 @@ std::optional<certify::PoseBlocks> FromProto(const v1::PublicPoses& poses) {
                                                    static_cast<Eigen::Index>(4 * count));
     out.iteration = poses.iteration();
     out.staircase_level = static_cast<int>(poses.staircase_level());
+    out.team_round = poses.team_round();
     return out;
 }
 

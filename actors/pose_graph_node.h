@@ -16,7 +16,13 @@ namespace certislam::actors {
 
 /// Settings of a pose-graph robot's actors.
 struct PoseGraphNodeConfig {
-    SolverActorConfig solver;               ///< RBCD (solver.odometry_edges is set false)
+    /// RBCD (solver.odometry_edges is set false); synchronous RBCD++ rounds by default: the
+    /// whole graph is known once the source has sent it.
+    SolverActorConfig solver = [] {
+        SolverActorConfig c;
+        c.synchronous = true;
+        return c;
+    }();
     CertifierConfig certifier;              ///< certificate
     std::chrono::milliseconds quiet{1500};  ///< done: certified and no change for this long
 

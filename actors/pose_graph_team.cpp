@@ -12,6 +12,7 @@ constexpr std::chrono::milliseconds kWatchPeriod{20};
 
 PoseGraphTeamResult Summarise(const std::vector<std::unique_ptr<PoseGraphNode>>& nodes) {
     PoseGraphTeamResult out;
+    bool sync = true;
     for (const auto& node : nodes) {
         const SolverSnapshot s = node->Snapshot();
         out.iterations_by_robot[node->robot()] = s.steps;
@@ -22,11 +23,15 @@ PoseGraphTeamResult Summarise(const std::vector<std::unique_ptr<PoseGraphNode>>&
             out.bytes_between_robots += bytes;
         }
         out.escapes += node->Certifier().Escapes();
+        sync = sync && s.rounds_converged && !s.rounds_gave_up;
     }
+    out.solver_mode = sync ? "synchronous" : "asynchronous";
     const PoseGraphNode& anchor = *nodes.front();
     const SolverSnapshot s = anchor.Snapshot();
     out.report = s.report;
     out.rank = s.rank;
+    out.restarts = s.restarts;
+    out.fallbacks = anchor.Certifier().Fallbacks();
     out.certificate_rounds = anchor.Certifier().Rounds();
     out.lanczos_steps = anchor.Certifier().LanczosSteps();
     return out;

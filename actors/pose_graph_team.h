@@ -30,6 +30,11 @@ struct PoseGraphTeamResult {
     std::uint64_t lanczos_steps = 0;  ///< S v products of those rounds (robot 0's count)
     int escapes = 0;                  ///< saddle escapes sent (anchor)
     int rank = 0;                     ///< robot 0's relaxation rank at the end
+    /// "synchronous": every robot's RBCD++ rounds reached the tolerance; "asynchronous": some
+    /// robot gave up its rounds (or never ran them) and went on with asynchronous updates.
+    std::string solver_mode = "asynchronous";
+    int restarts = 0;   ///< adaptive restarts of the rounds (robot 0's count)
+    int fallbacks = 0;  ///< certificate rounds the anchor checked centrally instead
 };
 
 /// Runs `graphs` (robot k = graphs[k].robot, ascending from 0) in one process over inproc until

@@ -83,6 +83,10 @@ void SolverActor::Subscribe() {
     On(v1::SolverStatus::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto status = transport::Unpack<v1::SolverStatus>(m);
         if (!status) return false;
+        if (status->team_round() > 0) {
+            if (config_.synchronous) OnRoundSums(*status);
+            return true;
+        }
         team_cost_[int(status->header().robot_id())] = status->cost();
         return true;
     });
@@ -151,6 +155,16 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
         }
         return true;
     }
+    if (poses->team_round > 0) {  // synchronous rounds (solver_actor_rounds.cpp)
+        if (!config_.synchronous) return true;
+        if (rounds_ && poses->staircase_level == rounds_level_) {
+            rounds_->OnPoses(poses->ids.front().robot, poses->team_round - 1, *poses);
+        } else if (poses->staircase_level >= state_.StaircaseLevel()) {
+            early_poses_.push_back(*poses);
+        }
+        work_ = true;
+        return true;
+    }
     state_.SetNeighbourPoses(*poses);
     work_ = true;
     return true;
@@ -163,6 +177,10 @@ void SolverActor::Changed() {
 }
 
 void SolverActor::Tick() {
+    if (config_.synchronous && !rounds_gave_up_) {
+        SyncTick();
+        return;
+    }
     // Public poses at most every publish_period (with a 2 ms tick, sending every step's poses is
     // a large share of a team's bytes); the newest go out late.
     if (publish_pending_ &&
@@ -213,6 +231,16 @@ void SolverActor::Publish() {
 
 void SolverActor::Heartbeat() {
     if (state_.NumPoses() == 0) return;
+    const bool in_rounds = config_.synchronous && !rounds_gave_up_ && !rounds_converged_;
+    if (in_rounds) {
+        // Rounds stalled for a heartbeat: a peer may have joined late; re-send the last round's
+        // messages (receivers keep one copy per round).
+        if (std::chrono::steady_clock::now() - last_round_progress_ >= config_.heartbeat) {
+            if (last_round_poses_) Send(*poses_out_, transport::Pack(*last_round_poses_), true);
+            if (last_round_sums_) Send(*poses_out_, transport::Pack(*last_round_sums_), true);
+        }
+        return;
+    }
     Publish();
     for (const auto& loop :
          config_.rebroadcast_loops ? state_.InterRobotLoops() : std::vector<slam::LoopClosure>{}) {
@@ -280,6 +308,10 @@ void SolverActor::UpdateSnapshot() {
     s.report = report_;
     s.changed = changed_;
     s.edges = state_.OwnEdges();
+    s.team_rounds = rounds_swept_;
+    s.restarts = rounds_restarts_ + (rounds_ ? rounds_->Restarts() : 0);
+    s.rounds_converged = rounds_converged_;
+    s.rounds_gave_up = rounds_gave_up_;
     std::lock_guard lock(snapshot_mutex_);
     snapshot_ = std::move(s);
 }

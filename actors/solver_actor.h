@@ -16,7 +16,9 @@
 #include "actors/durable_log.h"
 #include "actors/node_actor.h"
 #include "certify/pipeline/solver_state.h"
+#include "certify/pipeline/team_rounds.h"
 #include "certislam/v1/certificate.pb.h"
+#include "certislam/v1/rbcd.pb.h"
 #include "slam/core/trajectory.h"
 
 namespace certislam::actors {
@@ -38,6 +40,14 @@ struct SolverActorConfig {
     /// they missed); false where the source itself re-sends them to late subscribers (a pose
     /// graph's robot, whose hundreds of inter-robot edges would flood the peers' queues).
     bool rebroadcast_loops = true;
+    /// Synchronous RBCD++ (certify/pipeline/team_rounds.h) once the graph is final: no block
+    /// update before that, then the own block restarts from the chordal relaxation of the own
+    /// edges, robots are placed in id order and sweep in rounds with Nesterov extrapolation and
+    /// adaptive restart until the team's gradient is below tolerance (asynchronous RBCD after
+    /// rounds.max_rounds). For a whole graph known up front (pose-graph robots); false: the
+    /// asynchronous updates of a growing graph.
+    bool synchronous = false;
+    certify::TeamRoundsConfig rounds;  ///< the rounds
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -60,6 +70,10 @@ struct SolverSnapshot {
     /// Own edges as the solver holds them (odometry and active loops whose tail is own, with
     /// their weights), so a caller can rebuild the team graph.
     std::vector<slam::LoopClosure> edges;
+    std::uint64_t team_rounds = 0;  ///< synchronous rounds swept (SolverActorConfig::synchronous)
+    int restarts = 0;               ///< adaptive restarts of those rounds
+    bool rounds_converged = false;  ///< the rounds reached the team's gradient tolerance
+    bool rounds_gave_up = false;    ///< the rounds hit max_rounds: asynchronous updates took over
 };
 
 /// One robot's RBCD solver.
@@ -83,6 +97,12 @@ class SolverActor final : public NodeActor {
                     bool accepted);
     void Withdraw(const std::pair<slam::PoseId, slam::PoseId>& ends);
     void Tick();
+    bool IsFinal() const;
+    void SyncTick();
+    bool SyncAction(const certify::RoundAction& a);
+    void SendRoundPoses(std::uint64_t round);
+    void SendRoundSums(std::uint64_t round, double cost, double grad_norm);
+    void OnRoundSums(const v1::SolverStatus& status);
     void Heartbeat();
     void SendBundle();
     void Publish();
@@ -112,6 +132,18 @@ class SolverActor final : public NodeActor {
     bool publish_pending_ = false;  ///< a step moved the block since the last publish
     std::optional<v1::CertificateReport> report_;
     std::chrono::steady_clock::time_point changed_ = std::chrono::steady_clock::now();
+
+    std::optional<certify::TeamRounds> rounds_;  ///< synchronous mode, once final
+    int rounds_level_ = -1;                      ///< staircase level rounds_ belongs to
+    bool rounds_converged_ = false;
+    bool rounds_gave_up_ = false;
+    std::uint64_t rounds_swept_ = 0;                   ///< over every level
+    int rounds_restarts_ = 0;                          ///< over every level
+    std::vector<certify::PoseBlocks> early_poses_;     ///< round poses heard before rounds_ began
+    std::vector<v1::SolverStatus> early_sums_;         ///< round sums heard before rounds_ began
+    std::optional<v1::PublicPoses> last_round_poses_;  ///< re-sent when the rounds stall
+    std::optional<v1::SolverStatus> last_round_sums_;  ///< re-sent when the rounds stall
+    std::chrono::steady_clock::time_point last_round_progress_{};
 
     std::unique_ptr<DurableLog> log_;
     mutable std::mutex snapshot_mutex_;

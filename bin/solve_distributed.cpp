@@ -26,9 +26,12 @@ void PrintText(const nlohmann::json& j) {
                 j["poses"].get<int>(), j["edges"].get<int>(), j["robots"].get<int>());
     std::printf("objective %.10g   verdict: %s\n", j["cost"].get<double>(),
                 j["verdict"].get<std::string>().c_str());
-    std::printf("team iterations %llu   certificate rounds %d   Lanczos steps %llu\n",
-                j["iterations"].get<unsigned long long>(), j["certificate_rounds"].get<int>(),
-                j["lanczos_steps"].get<unsigned long long>());
+    std::printf(
+        "team iterations %llu (%s)   certificate rounds %d (central fallbacks %d)   "
+        "Lanczos steps %llu\n",
+        j["iterations"].get<unsigned long long>(), j["solver_mode"].get<std::string>().c_str(),
+        j["certificate_rounds"].get<int>(), j["central_fallbacks"].get<int>(),
+        j["lanczos_steps"].get<unsigned long long>());
     std::printf("bytes between robots %llu   %.3f s   peak RSS %.1f MB\n",
                 j["bytes_between_robots"]["total"].get<unsigned long long>(),
                 j["seconds"].get<double>(), j["peak_rss_mb"].get<double>());
@@ -54,6 +57,9 @@ nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots) 
                         {"certificate_rounds", r.certificate_rounds},
                         {"lanczos_steps", r.lanczos_steps},
                         {"escapes", r.escapes},
+                        {"solver_mode", r.solver_mode},
+                        {"restarts", r.restarts},
+                        {"central_fallbacks", r.fallbacks},
                         {"bytes_between_robots",
                          {{"total", r.bytes_between_robots}, {"by_actor", r.bytes_by_actor}}},
                         {"peak_rss_mb", PeakRssMb()},

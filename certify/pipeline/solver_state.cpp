@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "slam/backend/chordal.h"
 #include "slam/backend/rounding.h"
 #include "slam/core/partition.h"
 
@@ -268,6 +269,10 @@ bool SolverState::AdoptBlock(const Eigen::MatrixXd& X_own, int staircase_level) 
 }
 
 SolverStepResult SolverState::Step(double team_cost) {
+    return StepTo(impl_->config.rbcd.rel_grad_tol * std::max(1.0, team_cost));
+}
+
+SolverStepResult SolverState::StepTo(double tol) {
     Impl& m = *impl_;
     SolverStepResult result;
     if (m.n() == 0) return result;
@@ -282,7 +287,6 @@ SolverStepResult SolverState::Step(double team_cost) {
         return result;
     }
     m.agent->SetNeighborPoses(m.NeighbourBlocks());
-    const double tol = m.config.rbcd.rel_grad_tol * std::max(1.0, team_cost);
     const slam::RbcdAgentStatus s = m.agent->Update(tol);
     m.X = m.agent->Block();
     result.grad_norm = s.rtr_iterations == 0 ? s.grad_norm_before : s.grad_norm_after;
@@ -296,6 +300,80 @@ SolverStepResult SolverState::Step(double team_cost) {
         result.status = SolverStepResult::Status::kLocalOk;
     }
     return result;
+}
+
+SolverStepResult SolverState::Evaluate() {
+    Impl& m = *impl_;
+    SolverStepResult result;
+    if (m.n() == 0) return result;
+    if (m.dirty) m.Rebuild();
+    result.status = SolverStepResult::Status::kLocalOk;
+    result.cost = m.OwnCost();
+    if (m.agent) {
+        m.agent->SetNeighborPoses(m.NeighbourBlocks());
+        result.grad_norm = m.agent->BlockGradNorm();
+    }
+    return result;
+}
+
+void SolverState::SetOwnBlock(const Eigen::MatrixXd& X_own) {
+    Impl& m = *impl_;
+    if (X_own.rows() != m.X.rows() || X_own.cols() != m.X.cols()) return;
+    m.X = X_own;
+    if (m.agent && !m.dirty) m.agent->SetBlock(m.X);
+}
+
+bool SolverState::LocalChordalStart() {
+    Impl& m = *impl_;
+    slam::PoseGraph graph;
+    graph.d = 3;
+    graph.n = m.n();
+    for (int k = 0; m.config.odometry_edges && k + 1 < m.n(); ++k) {
+        graph.edges.push_back(slam::MeasurementOf(k, k + 1, m.odom[k].inverse() * m.odom[k + 1],
+                                                  m.OdomKappa(), m.OdomTau()));
+    }
+    for (const auto& l : m.loops) {
+        if (m.Own(l.a) && m.Own(l.b) && m.Active(l)) {
+            graph.edges.push_back(slam::MeasurementOf(l, l.a.index, l.b.index));
+        }
+    }
+    std::vector<int> root(m.n());  // union-find: chordal needs every own pose joined
+    for (int k = 0; k < m.n(); ++k) root[k] = k;
+    const auto find = [&](int k) {
+        while (root[k] != k) k = root[k] = root[root[k]];
+        return k;
+    };
+    int components = m.n();
+    for (const auto& e : graph.edges) {
+        const int a = find(e.i), b = find(e.j);
+        if (a != b) {
+            root[a] = b;
+            --components;
+        }
+    }
+    if (m.n() < 2 || components != 1) return false;
+    const slam::PoseMatrix P = slam::ChordalInitialization(graph);
+    if (!P.allFinite()) return false;
+    const Eigen::MatrixXd X0 = m.OwnPose(0);
+    const auto pose = [&](int k) {
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        T.linear() = P.block<3, 3>(0, kBlock * k);
+        T.translation() = P.block<3, 1>(0, kBlock * k + 3);
+        return T;
+    };
+    const Eigen::Isometry3d T0_inv = pose(0).inverse();
+    for (int k = 0; k < m.n(); ++k) {
+        m.X.middleCols(kBlock * k, kBlock) = LiftedTimes(X0, T0_inv * pose(k));
+    }
+    m.dirty = true;
+    return true;
+}
+
+bool SolverState::AlignToLowerNeighbour() {
+    Impl& m = *impl_;
+    const int before = m.frame_robot;
+    m.AlignToLowerRobot();
+    return m.frame_robot != before;
 }
 
 PoseBlocks SolverState::PublicPoses(std::uint64_t iteration) const {

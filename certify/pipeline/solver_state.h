@@ -26,6 +26,7 @@ struct PoseBlocks {
     Eigen::MatrixXd blocks;         ///< r x (d+1)|ids|, block k = [Y_k p_k]
     std::uint64_t iteration = 0;    ///< sender's RBCD iteration
     int staircase_level = 0;        ///< sender's saddle escapes so far
+    std::uint64_t team_round = 0;   ///< 1 + synchronous round (TeamRounds); 0: asynchronous
 };
 
 /// Settings of one robot's solver.
@@ -85,6 +86,20 @@ class SolverState {
     /// against the neighbours' last known poses (RBCD Alg. 1 line 4, asynchronous).
     /// `team_cost` scales the tolerance (rel_grad_tol * max(1, team_cost)).
     SolverStepResult Step(double team_cost);
+    /// Same with the block's gradient tolerance given (absolute).
+    SolverStepResult StepTo(double grad_tol);
+    /// This robot's share of f and its block gradient norm against the neighbours' last poses
+    /// (no step taken).
+    SolverStepResult Evaluate();
+    /// Replaces the own block (same size; the synchronous rounds' extrapolated start).
+    void SetOwnBlock(const Eigen::MatrixXd& X_own);
+    /// Own poses from the chordal relaxation of the own edges alone (no neighbour needed), moved
+    /// rigidly so own pose 0 stays where it was. False (nothing changed) when the own edges do
+    /// not join every own pose.
+    bool LocalChordalStart();
+    /// Moves the block rigidly through a loop into the frame of the lowest neighbour whose poses
+    /// are known (DiSCo-style placement at first encounter); false when none is known.
+    bool AlignToLowerNeighbour();
 
     /// Own public poses (ends of inter-robot edges) and always own pose 0 (the anchor).
     PoseBlocks PublicPoses(std::uint64_t iteration) const;

@@ -1,0 +1,137 @@
+// Solver actor, synchronous mode: RBCD++ rounds (certify/pipeline/team_rounds.h) driven by the
+// round-tagged public poses and sums of the other robots' solvers.
+#include <algorithm>
+
+#include "actors/convert.h"
+#include "actors/solver_actor.h"
+#include "actors/streams.h"
+
+namespace certislam::actors {
+
+bool SolverActor::IsFinal() const {
+    bool final = keyframes_ended_;
+    for (int r : Wiring().robots) final = final && loops_ended_.count(r) > 0;
+    return final;
+}
+
+void SolverActor::SendRoundPoses(std::uint64_t round) {
+    certify::PoseBlocks poses = state_.PublicPoses(steps_);
+    poses.team_round = round + 1;
+    auto proto = ToProto(poses);
+    *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    Send(*poses_out_, transport::Pack(proto), true);
+    last_round_poses_ = std::move(proto);
+}
+
+void SolverActor::SendRoundSums(std::uint64_t round, double cost, double grad_norm) {
+    v1::SolverStatus status;
+    *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    status.set_iteration(steps_);
+    status.set_phase(v1::SolverStatus::PHASE_ITERATING);
+    status.set_rank_r(static_cast<std::uint32_t>(state_.Rank()));
+    status.set_cost(cost);
+    status.set_gradient_norm(grad_norm);
+    status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
+    status.set_team_round(round + 1);
+    status.set_staircase_level(static_cast<std::uint32_t>(state_.StaircaseLevel()));
+    Send(*poses_out_, transport::Pack(status), true);
+    last_round_sums_ = std::move(status);
+}
+
+void SolverActor::OnRoundSums(const v1::SolverStatus& status) {
+    if (!rounds_ || int(status.staircase_level()) != rounds_level_) {
+        if (int(status.staircase_level()) >= state_.StaircaseLevel()) early_sums_.push_back(status);
+        return;
+    }
+    rounds_->OnSums(int(status.header().robot_id()), status.team_round() - 1, status.cost(),
+                    status.gradient_norm());
+    work_ = true;
+}
+
+// Performs one action of the rounds; false when the robot has to wait for messages.
+bool SolverActor::SyncAction(const certify::RoundAction& a) {
+    using K = certify::RoundAction::Kind;
+    switch (a.kind) {
+        case K::kWait:
+            return false;
+        case K::kAlign:
+            state_.SetNeighbourPoses(a.neighbours);
+            state_.AlignToLowerNeighbour();
+            rounds_->SweepDone(0, state_.FullBlock(steps_).blocks);
+            SendRoundPoses(0);
+            return true;
+        case K::kSweep: {
+            state_.SetNeighbourPoses(a.neighbours);
+            state_.SetOwnBlock(a.own_start);
+            const auto step = state_.StepTo(a.block_tol);
+            grad_norm_ = step.grad_norm;
+            ++steps_;
+            ++rounds_swept_;
+            rounds_->SweepDone(a.round, state_.FullBlock(steps_).blocks);
+            SendRoundPoses(a.round);
+            return true;
+        }
+        case K::kEvaluate: {
+            state_.SetNeighbourPoses(a.neighbours);
+            const auto eval = state_.Evaluate();
+            rounds_->OnSums(RobotId(), a.round, eval.cost, eval.grad_norm);
+            team_cost_[RobotId()] = eval.cost;
+            SendRoundSums(a.round, eval.cost, eval.grad_norm);
+            return true;
+        }
+        case K::kConverged:
+            state_.SetNeighbourPoses(a.neighbours);
+            state_.SetOwnBlock(a.own_start);
+            grad_norm_ = state_.Evaluate().grad_norm;
+            rounds_converged_ = true;
+            local_ok_ = true;
+            bundle_dirty_ = true;
+            publish_pending_ = true;
+            return false;
+        case K::kGaveUp:
+            rounds_gave_up_ = true;
+            return false;
+    }
+    return false;
+}
+
+// Synchronous mode: nothing before the graph is final; then rounds until converged (or given up:
+// asynchronous steps from there, Tick's usual path).
+void SolverActor::SyncTick() {
+    if (!IsFinal() || state_.NumPoses() == 0) return;
+    if (rounds_ && rounds_level_ != state_.StaircaseLevel()) {
+        rounds_restarts_ += rounds_->Restarts();
+        rounds_.reset();  // a saddle escape: new rounds from the adopted block
+        rounds_converged_ = false;
+        local_ok_ = false;
+    }
+    if (!rounds_) {
+        const certify::TeamRoundsConfig& rc = config_.rounds;
+        const auto nbrs = state_.Neighbours();
+        rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()), rc);
+        rounds_level_ = state_.StaircaseLevel();
+        if (rounds_level_ == 0) state_.LocalChordalStart();
+        for (const auto& p : early_poses_) {
+            if (p.staircase_level == rounds_level_ && !p.ids.empty()) {
+                rounds_->OnPoses(p.ids.front().robot, p.team_round - 1, p);
+            }
+        }
+        early_poses_.clear();
+        const auto sums = std::move(early_sums_);
+        early_sums_.clear();
+        for (const auto& s : sums) OnRoundSums(s);
+        last_round_progress_ = std::chrono::steady_clock::now();
+    }
+    bool progressed = false;
+    while (!rounds_converged_ && !rounds_gave_up_ && SyncAction(rounds_->Next())) {
+        progressed = true;
+    }
+    if (progressed) last_round_progress_ = std::chrono::steady_clock::now();
+    work_ = false;
+    if (publish_pending_) Publish();
+    const auto now = std::chrono::steady_clock::now();
+    if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
+    UpdateSnapshot();
+}
+
+}  // namespace certislam::actors

@@ -1,0 +1,190 @@
+// Synchronous RBCD++ rounds of one robot: which poses a sweep starts from, when the team's sums
+// are complete, and the accept / restart / stop rule every robot applies to the same sums.
+#include "certify/pipeline/team_rounds.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "slam/backend/stiefel.h"
+
+namespace certislam::certify {
+namespace {
+
+constexpr int kDimension = 3;
+// A rise of f below this relative size is the rounding noise of the robots' summed shares near
+// the optimum, not an overshoot: it does not restart the extrapolation.
+constexpr double kCostNoise = 1e-14;
+
+/// RBCD++ (Alg. 3): Proj(X_a + beta (X_a - X_b)) pose by pose; X_a itself when beta is 0.
+Eigen::MatrixXd Extrapolate(const Eigen::MatrixXd& X_a, const Eigen::MatrixXd& X_b, double beta) {
+    if (beta == 0.0 || X_a.cols() != X_b.cols() || X_a.rows() != X_b.rows()) return X_a;
+    return slam::ProjectToManifold(X_a + beta * (X_a - X_b), kDimension);
+}
+
+}  // namespace
+
+TeamRounds::TeamRounds(int robot, std::vector<int> robots, std::set<int> neighbours,
+                       TeamRoundsConfig config)
+    : robot_(robot),
+      robots_(std::move(robots)),
+      neighbours_(std::move(neighbours)),
+      config_(config) {
+    if (!(config_.rel_grad_tol > 0.0) || config_.max_rounds < 1 ||
+        !(config_.local_tol_factor > 0.0 && config_.local_tol_factor <= 1.0)) {
+        throw std::invalid_argument(
+            "TeamRoundsConfig: rel_grad_tol = " + std::to_string(config_.rel_grad_tol) +
+            " must be > 0, local_tol_factor = " + std::to_string(config_.local_tol_factor) +
+            " in (0, 1], max_rounds = " + std::to_string(config_.max_rounds) + " >= 1");
+    }
+}
+
+void TeamRounds::OnPoses(int robot, std::uint64_t round, const PoseBlocks& poses) {
+    if (neighbours_.count(robot) == 0 || round + 1 < accepted_prev_) return;
+    nbr_[robot][round] = poses;
+}
+
+void TeamRounds::OnSums(int robot, std::uint64_t round, double cost, double grad_norm) {
+    if (round < current_) return;
+    sums_[round][robot] = {cost, grad_norm * grad_norm};
+    if (robot == robot_ && round == current_) evaluated_ = true;
+}
+
+bool TeamRounds::HaveNeighbours(std::uint64_t round, bool lower_only) const {
+    for (int j : neighbours_) {
+        const auto it = nbr_.find(j);
+        if (it == nbr_.end()) {
+            if (j > robot_ && lower_only && round == 0) continue;
+            return false;
+        }
+        if (j < robot_ || !lower_only) {
+            if (it->second.count(round) == 0) return false;
+        } else if (round == 0) {
+            continue;  // placement waits for lower neighbours only
+        } else if (it->second.count(accepted_) == 0 ||
+                   (beta_ != 0.0 && it->second.count(accepted_prev_) == 0)) {
+            return false;
+        }
+    }
+    return true;
+}
+
+PoseBlocks TeamRounds::NeighbourPoses(std::uint64_t round, bool extrapolate_higher) const {
+    PoseBlocks out;
+    std::vector<Eigen::MatrixXd> parts;
+    Eigen::Index cols = 0, rows = 0;
+    for (int j : neighbours_) {
+        if (round == 0 && extrapolate_higher && j > robot_) continue;  // placement: lower only
+        const auto& by_round = nbr_.at(j);
+        const PoseBlocks* p = nullptr;
+        Eigen::MatrixXd blocks;
+        if (extrapolate_higher && j > robot_) {
+            p = &by_round.at(accepted_);
+            const auto prev = by_round.find(accepted_prev_);
+            blocks = prev == by_round.end() ? p->blocks
+                                            : Extrapolate(p->blocks, prev->second.blocks, beta_);
+        } else {
+            p = &by_round.at(round);
+            blocks = p->blocks;
+        }
+        out.ids.insert(out.ids.end(), p->ids.begin(), p->ids.end());
+        rows = blocks.rows();
+        cols += blocks.cols();
+        parts.push_back(std::move(blocks));
+    }
+    out.blocks.resize(rows, cols);
+    Eigen::Index c = 0;
+    for (const auto& part : parts) {
+        out.blocks.middleCols(c, part.cols()) = part;
+        c += part.cols();
+    }
+    return out;
+}
+
+RoundAction TeamRounds::Next() {
+    RoundAction a;
+    if (converged_) {
+        a.kind = RoundAction::Kind::kConverged;
+        a.round = accepted_;
+        a.own_start = own_.at(accepted_);
+        a.neighbours = NeighbourPoses(accepted_, false);
+        return a;
+    }
+    if (current_ > static_cast<std::uint64_t>(config_.max_rounds)) {
+        a.kind = RoundAction::Kind::kGaveUp;
+        return a;
+    }
+    a.round = current_;
+    if (own_.count(current_) == 0) {  // RBCD++ Alg. 3: the sweep from the extrapolated point
+        if (!HaveNeighbours(current_, true)) return a;
+        if (current_ == 0) {
+            a.kind = RoundAction::Kind::kAlign;
+            a.neighbours = NeighbourPoses(0, true);
+            return a;
+        }
+        a.kind = RoundAction::Kind::kSweep;
+        const auto prev = own_.find(accepted_prev_);
+        a.own_start = Extrapolate(own_.at(accepted_), prev->second, beta_);
+        a.neighbours = NeighbourPoses(current_, true);
+        // MATH.md: the local tolerance must be tighter than the global one.
+        a.block_tol =
+            config_.local_tol_factor * config_.rel_grad_tol * std::max(1.0, accepted_cost_);
+        return a;
+    }
+    if (!evaluated_) {
+        if (!HaveNeighbours(current_, false)) return a;
+        a.kind = RoundAction::Kind::kEvaluate;
+        a.neighbours = NeighbourPoses(current_, false);
+        return a;
+    }
+    if (sums_[current_].size() < robots_.size()) return a;
+    Decide();
+    return Next();
+}
+
+void TeamRounds::SweepDone(std::uint64_t round, const Eigen::MatrixXd& own_candidate) {
+    if (round != current_) return;
+    own_[round] = own_candidate;
+    if (round > 0) ++swept_;
+}
+
+void TeamRounds::Decide() {
+    double f = 0.0, grad_sq = 0.0;
+    for (const auto& [robot, s] : sums_[current_]) {
+        f += s.first;
+        grad_sq += s.second;
+    }
+    // Adaptive restart: an extrapolated round whose cost rose is dropped and the next round sweeps
+    // from the last accepted point without extrapolation (RBCD++, restart scheme of AMM-PGO).
+    const bool accept = current_ == 0 || !config_.acceleration || plain_ ||
+                        f <= accepted_cost_ + kCostNoise * std::max(1.0, accepted_cost_);
+    if (accept) {
+        if (current_ > 0) accepted_prev_ = accepted_;
+        accepted_ = current_;
+        accepted_cost_ = f;
+        gamma_ = plain_ ? 1.0 : gamma_next_;
+        converged_ = std::sqrt(grad_sq) <= config_.rel_grad_tol * std::max(1.0, f);
+    } else {
+        ++restarts_;
+        gamma_ = 1.0;
+    }
+    plain_ = !accept;
+    ++current_;
+    evaluated_ = false;
+    gamma_next_ = 0.5 * (1.0 + std::sqrt(1.0 + 4.0 * gamma_ * gamma_));
+    beta_ = config_.acceleration && !plain_ ? (gamma_ - 1.0) / gamma_next_ : 0.0;
+    Prune();
+}
+
+void TeamRounds::Prune() {
+    const std::uint64_t keep = std::min(accepted_prev_, accepted_);
+    std::erase_if(own_, [&](const auto& e) { return e.first < keep; });
+    for (auto& [robot, by_round] : nbr_) {
+        std::erase_if(by_round, [&](const auto& e) { return e.first < keep; });
+    }
+    std::erase_if(sums_, [&](const auto& e) { return e.first < current_; });
+}
+
+}  // namespace certislam::certify

@@ -1,0 +1,96 @@
+// One robot's share of synchronous RBCD++ over messages (Tian et al., T-RO 2021, Alg. 3 with
+// adaptive restart), without sockets: robots sweep in id order (Gauss-Seidel: robot i starts from
+// lower neighbours' poses of this round and higher neighbours' extrapolated poses), then every
+// robot sends its share of f and its block gradient norm (a scalar all-reduce), from which every
+// robot takes the same accept / restart / stop decision. Needs only neighbour exchanges and sums.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <map>
+#include <set>
+#include <vector>
+
+#include "certify/pipeline/solver_state.h"
+
+namespace certislam::certify {
+
+/// Settings of the synchronous rounds.
+struct TeamRoundsConfig {
+    bool acceleration = true;  ///< Nesterov extrapolation with adaptive restart (RBCD++)
+    /// Stop: ||rgrad f|| (from the robots' block gradients) <= this * max(1, f), > 0. Tighter
+    /// than RbcdConfig::rel_grad_tol: the certificate's bound needs lambda_min(S) near 0, and
+    /// S's error is first order in the gradient.
+    double rel_grad_tol = 1e-8;
+    double local_tol_factor = 0.1;  ///< a block update stops at this * the team tolerance, (0, 1]
+    int max_rounds = 1000;  ///< rounds before giving up (the caller goes asynchronous), >= 1
+};
+
+/// What the robot should do next.
+struct RoundAction {
+    enum class Kind {
+        kWait,       ///< a neighbour's poses or a robot's sums of the last round are missing
+        kAlign,      ///< round 0: place the own block through a loop to a lower neighbour's
+                     ///< poses in `neighbours` (their round 0), then SweepDone(0, block)
+        kSweep,      ///< update the own block from `own_start` against `neighbours`
+        kEvaluate,   ///< every neighbour's poses of `round` are in: own share of f and gradient
+        kConverged,  ///< the team's gradient is below tolerance at round `round` (accepted)
+        kGaveUp,     ///< max_rounds reached
+    };
+    Kind kind = Kind::kWait;
+    std::uint64_t round = 0;    ///< the round this action belongs to
+    Eigen::MatrixXd own_start;  ///< kSweep: own block to start from; kConverged: the solution
+    PoseBlocks neighbours;      ///< kSweep, kEvaluate, kConverged: neighbours' poses to use
+    double block_tol = 0.0;     ///< kSweep: the block update's gradient tolerance (absolute)
+};
+
+/// One robot's synchronous RBCD++ bookkeeping (plain data in and out).
+class TeamRounds {
+  public:
+    /// Robot `robot` of `robots` (every robot's sums are awaited), sharing edges with
+    /// `neighbours`. Round 0 places the robots in id order (kAlign); sweeps start at round 1.
+    TeamRounds(int robot, std::vector<int> robots, std::set<int> neighbours,
+               TeamRoundsConfig config);
+
+    /// A neighbour's public poses after its sweep of `round` (round 0: its starting block).
+    void OnPoses(int robot, std::uint64_t round, const PoseBlocks& poses);
+    /// A robot's share of f and its block gradient norm at `round`'s candidate.
+    void OnSums(int robot, std::uint64_t round, double cost, double grad_norm);
+    /// The next action (the caller does it, then reports with SweepDone or OnSums for itself).
+    RoundAction Next();
+    /// The own block after the sweep (or placement) of `round`.
+    void SweepDone(std::uint64_t round, const Eigen::MatrixXd& own_candidate);
+
+    /// Rounds swept so far (round 0 is the start, not a sweep).
+    std::uint64_t Rounds() const { return swept_; }
+    /// Adaptive restarts so far.
+    int Restarts() const { return restarts_; }
+
+  private:
+    bool HaveNeighbours(std::uint64_t round, bool lower_only) const;
+    PoseBlocks NeighbourPoses(std::uint64_t round, bool extrapolate_higher) const;
+    void Decide();
+    void Prune();
+
+    int robot_;
+    std::vector<int> robots_;
+    std::set<int> neighbours_;
+    TeamRoundsConfig config_;
+    std::map<std::uint64_t, Eigen::MatrixXd> own_;  ///< own block by round
+    std::map<int, std::map<std::uint64_t, PoseBlocks>> nbr_;
+    std::map<std::uint64_t, std::map<int, std::pair<double, double>>> sums_;
+    std::uint64_t current_ = 0;        ///< the round in progress (0: start)
+    bool evaluated_ = false;           ///< own sums of current_ sent
+    std::uint64_t accepted_ = 0;       ///< last accepted round
+    std::uint64_t accepted_prev_ = 0;  ///< the accepted round before it
+    bool plain_ = false;               ///< current_ restarts from accepted_ without extrapolation
+    double gamma_ = 1.0;               ///< Nesterov weight of accepted_
+    double beta_ = 0.0;                ///< extrapolation weight of current_
+    double gamma_next_ = 1.0;          ///< gamma if current_ is accepted
+    double accepted_cost_ = 0.0;       ///< f at accepted_
+    bool converged_ = false;
+    std::uint64_t swept_ = 0;
+    int restarts_ = 0;
+};
+
+}  // namespace certislam::certify

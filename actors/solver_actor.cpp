@@ -147,6 +147,12 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
     const auto proto = transport::Unpack<v1::PublicPoses>(m);
     const auto poses = proto ? FromProto(*proto) : std::nullopt;
     if (!poses || poses->ids.empty()) return false;
+    // A peer at our staircase level holds blocks of our rank; other rows are malformed (dropped
+    // and counted): they would overrun the neighbour blocks of an RBCD step.
+    if (poses->staircase_level == state_.StaircaseLevel() &&
+        poses->blocks.rows() != state_.Rank()) {
+        return false;
+    }
     if (poses->ids.front().robot == RobotId()) {
         // A certifier's saddle escape: our whole block at rank r+1 (RBCD staircase).
         if (poses->staircase_level > state_.StaircaseLevel() &&

@@ -112,7 +112,8 @@ void SolverActor::SyncTick() {
         rounds_level_ = state_.StaircaseLevel();
         if (rounds_level_ == 0) state_.LocalChordalStart();
         for (const auto& p : early_poses_) {
-            if (p.staircase_level == rounds_level_ && !p.ids.empty()) {
+            if (p.staircase_level == rounds_level_ && !p.ids.empty() &&
+                p.blocks.rows() == state_.Rank()) {
                 rounds_->OnPoses(p.ids.front().robot, p.team_round - 1, p);
             }
         }

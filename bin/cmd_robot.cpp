@@ -29,6 +29,7 @@ int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
     const actors::RobotNodeConfig own = NodeConfigFor(config, id);
     actors::PoseGraphNodeConfig node_config;
     node_config.solver = own.solver;
+    node_config.solver.synchronous = true;  // RBCD++ rounds, as pose_graph_node.h's default
     node_config.certifier = own.certifier;
     node_config.quiet = own.quiet;
     const auto start = std::chrono::steady_clock::now();

@@ -21,6 +21,7 @@ int RunPoseGraph(const TeamConfig& config, double timeout_s, bool json) {
     const auto graphs = LoadPoseGraphSource(config.path, config.source, config.robots);
     actors::PoseGraphNodeConfig node;
     node.solver = config.node.solver;
+    node.solver.synchronous = true;  // the whole graph is known: RBCD++ rounds (pose_graph_node.h)
     node.certifier = config.node.certifier;
     node.quiet = config.node.quiet;
     const auto result =

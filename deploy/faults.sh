@@ -76,17 +76,24 @@ ports() {
 # run (its durable keyframe log at half that size), so a fault lands mid-mission whatever the load.
 mid_mission() {
     local log="$dir/logs/robot$1.keyframes.log" half k
-    half=$(($(stat -c %s "$reference/logs/robot$1.keyframes.log") / 2))
+    half=$(($(stat -c %s "$reference/logs/robot$1.keyframes.log" 2>/dev/null || echo 0) / 2))
     for ((k = 0; k < 600; k++)); do
         [ "$(stat -c %s "$log" 2>/dev/null || echo 0)" -lt "$half" ] || return 0
         sleep 0.1
     done
+    note="failed: robot $1 never reached mid-mission"
+    return 1
+}
+
+# signal SIG K: sends SIG to robot K; a robot already gone fails the fault (never a silent pass).
+signal() {
+    kill "-$1" "${pids[$2]}" 2>/dev/null || note="failed: robot $2 had exited before SIG$1"
 }
 
 fault_kill9() { # K: kill -9 mid-mission, restarted 1 s later from its durable log
     start_team "$dir"
-    mid_mission "$1"
-    kill -9 "${pids[$1]}"
+    mid_mission "$1" || true
+    signal KILL "$1"
     wait "${pids[$1]}" 2>/dev/null || true
     sleep 1
     start_robot "$1" "$dir"
@@ -97,10 +104,10 @@ fault_kill9_robot() { fault_kill9 $((team_n - 1)); }
 
 fault_sigstop() { # robot 1 stopped for stop_s, then continued
     start_team "$dir"
-    mid_mission 1
-    kill -STOP "${pids[1]}"
+    mid_mission 1 || true
+    signal STOP 1
     sleep "$stop_s"
-    kill -CONT "${pids[1]}"
+    signal CONT 1
     wait_team
 }
 
@@ -188,11 +195,16 @@ fault_garbage() { # malformed greetings, random bytes and 2^62-byte frames on ev
     local targets=() k
     for ((k = 0; k < team_n; k++)); do mapfile -t -O "${#targets[@]}" targets < <(ports "$k"); done
     start_team "$dir"
+    mid_mission 0 || true  # the robots have bound their ports
     python3 "$tools" garbage 8 "${targets[@]}" >"$dir/garbage.json" &
     local sender=$!
     wait_team
     wait "$sender" || true
-    note="$(cat "$dir/garbage.json")"
+    if grep -q '"garbage_connections": 0[,}]' "$dir/garbage.json" || [ ! -s "$dir/garbage.json" ]; then
+        note="failed: no garbage reached a robot ($(cat "$dir/garbage.json"))"
+    elif [ -z "$note" ]; then
+        note="$(cat "$dir/garbage.json")"
+    fi
 }
 
 # listen_drops K: connection attempts robot K's kernel dropped from full accept queues so far
@@ -213,7 +225,8 @@ fault_flood() { # idle unauthenticated connections held on the anchor's ports th
     wait_team
     kill -TERM "$flooder" 2>/dev/null || true
     wait "$flooder" || code=$?
-    if [ "$code" != 0 ] || [ ! -s "$dir/flood.json" ]; then
+    if [ "$code" != 0 ] || [ ! -s "$dir/flood.json" ] ||
+        grep -q '"flood_opened": 0[,}]' "$dir/flood.json"; then
         note="failed: the flood did not run (exit $code)"
     else
         note="$(cat "$dir/flood.json")"

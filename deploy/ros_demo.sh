@@ -100,6 +100,7 @@ fi
 /usr/bin/python3 "$root/deploy/ros/record.py" --robots 0 1 --truth "$out" \
     --ready "$out/recorder.ready" --timeout "$timeout_s" >"$out/record.json" 2>"$out/record.log" &
 recorder=$!
+pids+=("$recorder")
 for _ in $(seq 100); do [ -e "$out/recorder.ready" ] && break; sleep 0.2; done
 sleep 2  # the nodes' and recorder's subscriptions connect
 rosbag play --clock -q -r "$rate" "$out/robot0.bag" "$out/robot1.bag" >"$out/play.log" 2>&1
@@ -148,10 +149,14 @@ def compare(rec):
     for k in ("0", "1"):
         a, b = f"{out}/robot{k}.tum", f"{out}/run/robot{k}.tum"
         if os.path.exists(a) and os.path.exists(b):
-            pa, pb = tum(a), tum(b)
-            n = min(len(pa), len(pb))
-            res[f"robot{k}_max_diff_m"] = max((math.dist(pa[i][1:4], pb[i][1:4])
-                                              for i in range(n)), default=None)
+            # Poses matched by stamp; poses only one side holds are counted, not hidden.
+            pa = {round(p[0], 6): p[1:4] for p in tum(a)}
+            pb = {round(p[0], 6): p[1:4] for p in tum(b)}
+            common = pa.keys() & pb.keys()
+            res[f"robot{k}_max_diff_m"] = max((math.dist(pa[t], pb[t]) for t in common),
+                                              default=None)
+            res[f"robot{k}_poses_matched"] = len(common)
+            res[f"robot{k}_poses_unmatched"] = len(pa.keys() ^ pb.keys())
     return res
 try:
     rec = json.load(open(f"{out}/record.json"))

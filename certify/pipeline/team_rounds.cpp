@@ -47,7 +47,11 @@ void TeamRounds::OnPoses(int robot, std::uint64_t round, const PoseBlocks& poses
 }
 
 void TeamRounds::OnSums(int robot, std::uint64_t round, double cost, double grad_norm) {
-    if (round < current_) return;
+    // Only the team's robots decide a round (sums_ counts them), each with finite sums.
+    if (round < current_ || std::find(robots_.begin(), robots_.end(), robot) == robots_.end() ||
+        !std::isfinite(cost) || !std::isfinite(grad_norm)) {
+        return;
+    }
     sums_[round][robot] = {cost, grad_norm * grad_norm};
     if (robot == robot_ && round == current_) evaluated_ = true;
 }

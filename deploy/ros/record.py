@@ -2,8 +2,9 @@
 """Subscriber of deploy/ros_demo.sh: records each robot's published path and status until every
 robot's status says done (certified, keyframes ended, quiet) or the timeout; prints one JSON object:
 per robot the last path's length, its ATE (RMSE of positions, map frame, no alignment) against the
-truth TUM file, the last verdict, dropped keyframes, and the delay from the first inter-robot loop
-to the first path published after it.
+truth TUM file, the last verdict, dropped keyframes, and the delays from the first status counting
+an inter-robot loop to the first path published after it and to the first path that loop moved
+(a pose both paths hold changed by over 1 mm: the corrected path).
 
 Usage: record.py --robots 0 1 --truth DIR --timeout S [--ready FILE]
 """
@@ -44,6 +45,17 @@ def ate(path_msg, truth):
     return (math.sqrt(se / n) if n else None), n
 
 
+def moved(before, after):
+    """Largest position change of the poses both paths hold (same index), in metres."""
+    if before is None:
+        return math.inf
+    change = 0.0
+    for a, b in zip(before.poses, after.poses):
+        p, q = a.pose.position, b.pose.position
+        change = max(change, math.dist((p.x, p.y, p.z), (q.x, q.y, q.z)))
+    return change
+
+
 class Robot:
     def __init__(self, k):
         self.k = k
@@ -52,14 +64,22 @@ class Robot:
         self.status = None
         self.first_loop_wall = None
         self.first_path_after_loop_wall = None
+        self.path_before_loop = None  # the last path published before the first loop
+        self.first_corrected_wall = None  # first path after it that the loop moved (> 1 mm)
         self.lock = threading.Lock()
 
     def on_path(self, msg):
         with self.lock:
             self.path = msg
             self.paths += 1
-            if self.first_loop_wall is not None and self.first_path_after_loop_wall is None:
-                self.first_path_after_loop_wall = time.monotonic()
+            if self.first_loop_wall is None:
+                self.path_before_loop = msg
+                return
+            now = time.monotonic()
+            if self.first_path_after_loop_wall is None:
+                self.first_path_after_loop_wall = now
+            if self.first_corrected_wall is None and moved(self.path_before_loop, msg) > 1e-3:
+                self.first_corrected_wall = now
 
     def on_status(self, msg):
         s = json.loads(msg.data)
@@ -109,6 +129,8 @@ def main():
                 entry["ate_matched"] = n
             if r.first_loop_wall is not None and r.first_path_after_loop_wall is not None:
                 entry["first_path_after_loop_s"] = r.first_path_after_loop_wall - r.first_loop_wall
+            if r.first_loop_wall is not None and r.first_corrected_wall is not None:
+                entry["first_corrected_path_after_loop_s"] = r.first_corrected_wall - r.first_loop_wall
         out["robots"][str(k)] = entry
         # A team, not two lone robots: each node must have accepted an inter-robot loop.
         ok = (ok and entry["path_length"] > 0 and entry["verdict"] == "certified"

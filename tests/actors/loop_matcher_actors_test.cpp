@@ -1,8 +1,8 @@
 // The loop matcher's PCM in the loop, over real inproc sockets: two robots' ingest, descriptor,
 // matcher and solver actors on a simulated mission where some of robot 1's keyframes carry a
 // cloud copied from a far-away place of robot 0 (perceptual aliasing: registration accepts the
-// false loop); no false loop is ever sent on the loop stream and the solvers' graphs hold only
-// true ones. And a solver over sockets: a withdrawal removes a loop, a stale verdict or a
+// false loop); a false loop sent on the loop stream is withdrawn, and the solvers' graphs end
+// with only true ones. And a solver over sockets: a withdrawal removes a loop, a stale verdict or a
 // re-broadcast does not bring it back, a newer accept does.
 #include <gtest/gtest.h>
 
@@ -44,7 +44,10 @@ bool WaitFor(Pred pred, std::chrono::milliseconds timeout) {
     return true;
 }
 
-TEST(LoopMatcherActors, AliasedKeyframesMakeFalseLoopsThatNeverReachTheSolvers) {
+// Incremental PCM may send an aliased loop while it is the largest consistent set it has (the
+// order registrations finish in depends on load), but must withdraw it once the true loops
+// outvote it: no false loop stays with the solvers.
+TEST(LoopMatcherActors, AliasedKeyframesMakeFalseLoopsThatDoNotStayWithTheSolvers) {
     slam::SimulatorConfig sim;
     sim.seed = 1;
     const slam::MissionGenerator g(sim);
@@ -85,14 +88,16 @@ TEST(LoopMatcherActors, AliasedKeyframesMakeFalseLoopsThatNeverReachTheSolvers) 
     for (auto& a : actors) a->Start();
 
     std::vector<slam::LoopClosure> sent;
+    std::set<std::pair<slam::PoseId, slam::PoseId>> withdrawn;
     int withdrawals = 0;
     bool ended = false;
     const auto deadline = std::chrono::steady_clock::now() + kTimeout;
     while (!ended && std::chrono::steady_clock::now() < deadline) {
         while (auto m = listener.Receive(std::chrono::milliseconds(10))) {
             if (auto proto = transport::Unpack<v1::LoopClosure>(*m)) {
-                if (WithdrawnEnds(*proto)) {
+                if (const auto ends = WithdrawnEnds(*proto)) {
                     ++withdrawals;
+                    withdrawn.insert(*ends);
                 } else if (auto loop = FromProto(*proto)) {
                     sent.push_back(*loop);
                 }
@@ -104,8 +109,9 @@ TEST(LoopMatcherActors, AliasedKeyframesMakeFalseLoopsThatNeverReachTheSolvers) 
     ASSERT_TRUE(ended) << "robot 1's matcher never said end of loops";
     int inter = 0;
     for (const auto& l : sent) {
-        EXPECT_TRUE(IsTrue(g, l)) << "a false loop was sent: (" << l.a.robot << "," << l.a.index
-                                  << ")-(" << l.b.robot << "," << l.b.index << ")";
+        EXPECT_TRUE(IsTrue(g, l) || withdrawn.count({l.a, l.b}) + withdrawn.count({l.b, l.a}) > 0)
+            << "a false loop was sent and never withdrawn: (" << l.a.robot << "," << l.a.index
+            << ")-(" << l.b.robot << "," << l.b.index << ")";
         inter += l.inter_robot() ? 1 : 0;
     }
     EXPECT_GE(inter, 2);

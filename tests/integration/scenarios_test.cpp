@@ -15,6 +15,7 @@
 #include <string>
 
 #include "tests/integration/shell.h"
+#include "tests/param_names.h"
 
 namespace certislam {
 namespace {
@@ -69,13 +70,7 @@ TEST_P(ScenarioFloors, LocalMinimumRefusedAndCertifiedBeatsThePapersImprovements
 }
 
 INSTANTIATE_TEST_SUITE_P(Demo, ScenarioFloors, ::testing::Values("large-drift"),
-                         [](const auto& info) {
-                             std::string name = info.param;
-                             for (char& c : name) {
-                                 if (c == '-') c = '_';
-                             }
-                             return name;
-                         });
+                         certislam::testing::DashesToUnderscores());
 
 }  // namespace
 }  // namespace certislam

@@ -9,6 +9,7 @@
 #include "certify/pipeline/mission.h"
 #include "slam/sim/sim_scenarios.h"
 #include "slam/sim/simulator.h"
+#include "tests/param_names.h"
 
 namespace certislam::certify {
 namespace {
@@ -55,13 +56,7 @@ TEST_P(ScenarioTrap, LocalSearchFromOdometryIsRefusedWhileRbcdIsCertified) {
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, ScenarioTrap,
                          ::testing::Values("tunnel-rendezvous", "large-drift"),
-                         [](const auto& info) {
-                             std::string name = info.param;
-                             for (char& c : name) {
-                                 if (c == '-') c = '_';
-                             }
-                             return name;
-                         });
+                         testing::DashesToUnderscores());
 
 }  // namespace
 }  // namespace certislam::certify

@@ -10,7 +10,9 @@ namespace {
 
 constexpr std::chrono::milliseconds kWatchPeriod{20};
 
-PoseGraphTeamResult Summarise(const std::vector<std::unique_ptr<PoseGraphNode>>& nodes) {
+}  // namespace
+
+PoseGraphTeamResult SummariseNodes(const std::vector<const PoseGraphNode*>& nodes) {
     PoseGraphTeamResult out;
     bool sync = true;
     for (const auto& node : nodes) {
@@ -37,8 +39,6 @@ PoseGraphTeamResult Summarise(const std::vector<std::unique_ptr<PoseGraphNode>>&
     return out;
 }
 
-}  // namespace
-
 PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs,
                                      const PoseGraphNodeConfig& config,
                                      std::chrono::duration<double> timeout) {
@@ -61,7 +61,9 @@ PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs
     }
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    PoseGraphTeamResult out = Summarise(nodes);
+    std::vector<const PoseGraphNode*> views;
+    for (const auto& node : nodes) views.push_back(node.get());
+    PoseGraphTeamResult out = SummariseNodes(views);
     out.done = done;
     out.seconds = seconds;
     for (auto& node : nodes) node->Stop();

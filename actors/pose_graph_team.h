@@ -37,6 +37,10 @@ struct PoseGraphTeamResult {
     int fallbacks = 0;  ///< certificate rounds the anchor checked centrally instead
 };
 
+/// What `nodes` (the anchor first) have done so far: counters summed or maxed over them, the
+/// anchor's report and certificate counters; `done` and `seconds` are left to the caller.
+PoseGraphTeamResult SummariseNodes(const std::vector<const PoseGraphNode*>& nodes);
+
 /// Runs `graphs` (robot k = graphs[k].robot, ascending from 0) in one process over inproc until
 /// all are done or `timeout` passes.
 PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs,

@@ -2,6 +2,8 @@
 // its peers are other processes reached over tcp, with CURVE when the configuration names keys
 // (distributed multi-host mode). With mapping on, its TSDF mapper's mesh goes to
 // DIR/robot<K>.mesh.ply (the anchor's holds every robot's submaps; see mapping.team_map).
+#include <google/protobuf/util/json_util.h>
+
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -11,9 +13,11 @@
 #include <thread>
 
 #include "actors/pose_graph_node.h"
+#include "actors/pose_graph_team.h"
 #include "bin/command.h"
 #include "bin/config/team_config.h"
 #include "bin/progress.h"
+#include "bin/solve_distributed.h"
 #include "bin/stop_within.h"
 #include "bin/verdict.h"
 #include "transport/curve.h"
@@ -41,32 +45,28 @@ int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
         done = node.Done();
     }
-    const double seconds =
+    actors::PoseGraphTeamResult result = actors::SummariseNodes({&node});
+    result.done = done;
+    result.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    const actors::SolverSnapshot s = node.Snapshot();
-    const auto bytes = node.BytesSentToPeersByActor();
     node.Stop();
-    const v1::CertificateReport report = s.report.value_or(v1::CertificateReport{});
-    std::uint64_t total = 0;
-    for (const auto& [actor, n] : bytes) total += n;
-    const nlohmann::json j = {{"schema_version", kSchemaVersion},
-                              {"robot", id},
-                              {"path", "distributed"},
-                              {"cost", report.objective()},
-                              {"verdict", VerdictName(report.verdict())},
-                              {"certified", done},
-                              {"iterations", s.steps},
-                              {"seconds", seconds},
-                              {"bytes_sent", total},
-                              {"bytes_sent_by_actor", bytes},
-                              {"certificate_rounds", node.Certifier().Rounds()},
-                              {"lanczos_steps", node.Certifier().LanczosSteps()}};
+    const bool ipc = wiring.addresses.at(id).at(actors::Edge::kCertify).rfind("ipc://", 0) == 0;
+    nlohmann::json j = TeamResultJson(result, 1, ipc ? "ipc" : "tcp");
+    j["robot"] = id;
+    j["bytes_sent"] = result.bytes_between_robots;
+    j["bytes_sent_by_actor"] = result.bytes_by_actor;
+    if (result.report) {  // the anchor's certificate as its schema says (MergeRobotReports)
+        std::string text;
+        if (google::protobuf::util::MessageToJsonString(*result.report, &text).ok()) {
+            j["certificate_report"] = nlohmann::json::parse(text);
+        }
+    }
     if (json) {
         std::printf("%s\n", j.dump(2).c_str());
     } else {
         std::printf("robot %d   objective %.10g   verdict: %s   iterations %llu   %.3f s\n", id,
-                    report.objective(), VerdictName(report.verdict()).c_str(),
-                    static_cast<unsigned long long>(s.steps), seconds);
+                    j["cost"].get<double>(), j["verdict"].get<std::string>().c_str(),
+                    static_cast<unsigned long long>(result.iterations), result.seconds);
     }
     return done ? kExitDone : kExitNotCertified;
 }
@@ -120,7 +120,7 @@ int RunRobot(int argc, char** argv) {
     try {
         TeamConfig config = LoadTeamConfig(config_path);
         if (!log_dir.empty()) config.log_dir = log_dir;
-        const actors::TeamWiring wiring = TcpWiring(config, id);
+        const actors::TeamWiring wiring = NetworkWiring(config, id);
         const TeamSource source(config.source, config.robots);
         zmq::context_t context;
         const auto zap = MakeZap(context, wiring);

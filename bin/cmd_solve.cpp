@@ -32,6 +32,7 @@ struct SolveOptions {
     bool json = false;
     bool quiet = false;
     bool distributed = false;
+    std::string transport = "inproc";
     double timeout_s = 600.0;
     double max_relative_bound = certify::CertificateConfig{}.max_relative_bound;
 };
@@ -146,16 +147,17 @@ void AddOptions(CLI::App& app, SolveOptions& o) {
     app.add_option("--max-relative-bound", o.max_relative_bound,
                    "certified needs a relative suboptimality bound at most this, in (0, 1)");
     app.add_flag("--distributed", o.distributed,
-                 "each robot its own solver and certifier actors over inproc sockets (3D graphs)");
+                 "each robot its own solver and certifier actors over sockets (3D graphs)");
+    app.add_option("--transport", o.transport,
+                   "--distributed: inproc (one process), or ipc / tcp (a `certislam robot` "
+                   "process per robot on this host)")
+        ->check(CLI::IsMember({"inproc", "ipc", "tcp"}));
     app.add_option("--timeout", o.timeout_s, "--distributed: give up after this many seconds")
         ->check(CLI::PositiveNumber);
 }
 
-int RunSolve(int argc, char** argv) {
-    SolveOptions o;
-    CLI::App app{"Certifiably optimal pose-graph optimisation (RBCD + dual certificate)"};
-    AddOptions(app, o);
-    CLI11_PARSE(app, argc, argv);
+/// Options that do not go together: prints why and returns kExitUsage (else kExitDone).
+int CheckOptionCombinations(const SolveOptions& o) {
     if (!(o.max_relative_bound > 0.0 && o.max_relative_bound < 1.0)) {
         std::fprintf(stderr, "certislam solve: error: --max-relative-bound: %g is not in (0, 1)\n",
                      o.max_relative_bound);
@@ -167,7 +169,20 @@ int RunSolve(int argc, char** argv) {
                      "--rank or --out\n");
         return kExitUsage;
     }
+    if (!o.distributed && o.transport != "inproc") {
+        std::fprintf(stderr, "certislam solve: error: --transport %s needs --distributed\n",
+                     o.transport.c_str());
+        return kExitUsage;
+    }
+    return kExitDone;
+}
 
+int RunSolve(int argc, char** argv) {
+    SolveOptions o;
+    CLI::App app{"Certifiably optimal pose-graph optimisation (RBCD + dual certificate)"};
+    AddOptions(app, o);
+    CLI11_PARSE(app, argc, argv);
+    if (const int code = CheckOptionCombinations(o); code != kExitDone) return code;
     if (!o.out.empty() && !SolutionFormatError(o.out).empty()) {
         std::fprintf(stderr, "certislam solve: error: %s\n", SolutionFormatError(o.out).c_str());
         return 1;
@@ -179,8 +194,14 @@ int RunSolve(int argc, char** argv) {
     }
     const slam::PoseGraph& graph = read.graph;
     if (o.distributed) {
-        return RunDistributedSolve(graph,
-                                   {o.file, o.robots, o.timeout_s, o.json, o.max_relative_bound});
+        DistributedSolveOptions d;
+        d.file = o.file;
+        d.robots = o.robots;
+        d.timeout_s = o.timeout_s;
+        d.json = o.json;
+        d.max_relative_bound = o.max_relative_bound;
+        d.transport = o.transport;
+        return RunDistributedSolve(graph, d);
     }
     certify::PoseGraphSolverConfig config;
     config.method = o.method == "lm" ? certify::PoseGraphSolverConfig::Method::kLm

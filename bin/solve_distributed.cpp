@@ -3,17 +3,17 @@
 
 #include <sys/resource.h>
 
+#include <cmath>
 #include <cstdio>
 #include <stdexcept>
 
 #include "bin/command.h"
+#include "bin/solve_processes.h"
 #include "bin/verdict.h"
 #include "slam/core/graph_split.h"
 
 namespace certislam::bin {
 namespace {
-
-constexpr std::chrono::milliseconds kQuiet{300};  ///< done: certified and unchanged this long
 
 double PeakRssMb() {
     rusage usage{};
@@ -22,8 +22,9 @@ double PeakRssMb() {
 }
 
 void PrintText(const nlohmann::json& j) {
-    std::printf("poses %d   edges %d   robots %d   path distributed (inproc)\n",
-                j["poses"].get<int>(), j["edges"].get<int>(), j["robots"].get<int>());
+    std::printf("poses %d   edges %d   robots %d   path distributed (%s)\n", j["poses"].get<int>(),
+                j["edges"].get<int>(), j["robots"].get<int>(),
+                j["transport"].get<std::string>().c_str());
     std::printf("objective %.10g   verdict: %s\n", j["cost"].get<double>(),
                 j["verdict"].get<std::string>().c_str());
     std::printf(
@@ -39,13 +40,14 @@ void PrintText(const nlohmann::json& j) {
 
 }  // namespace
 
-nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots) {
+nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots,
+                              const std::string& transport) {
     const v1::CertificateReport report = r.report.value_or(v1::CertificateReport{});
     const bool certified = r.done && report.verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
     nlohmann::json j = {{"schema_version", kSchemaVersion},
                         {"method", "rbcd"},
                         {"path", "distributed"},
-                        {"transport", "inproc"},
+                        {"transport", transport},
                         {"objective", report.objective()},
                         {"cost", report.objective()},
                         {"certified", certified},
@@ -80,6 +82,20 @@ nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots) 
     return j;
 }
 
+int PrintDistributedReport(nlohmann::json* j, const slam::PoseGraph& graph,
+                           const DistributedSolveOptions& o) {
+    (*j)["file"] = o.file;
+    (*j)["poses"] = graph.n;
+    (*j)["edges"] = static_cast<int>(graph.edges.size());
+    (*j)["quiet_seconds"] = o.quiet_s;
+    if (o.json) {
+        std::printf("%s\n", j->dump(2).c_str());
+    } else {
+        PrintText(*j);
+    }
+    return (*j)["certified"].get<bool>() ? kExitDone : kExitNotCertified;
+}
+
 int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOptions& o) {
     std::vector<slam::RobotGraph> graphs;
     try {
@@ -87,27 +103,19 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
                                               ? slam::ContiguousPartition(graph.n, o.robots)
                                               : slam::PartitionFromIds(graph);
         graphs = slam::SplitGraph(graph, partition);
-    } catch (const std::invalid_argument& e) {
+        if (o.transport != "inproc") return RunProcessSolve(graph, o);
+    } catch (const std::exception& e) {
         std::fprintf(stderr, "certislam solve: error: %s: --distributed: %s\n", o.file.c_str(),
                      e.what());
         return kExitBadInput;
     }
     actors::PoseGraphNodeConfig config;
-    config.quiet = kQuiet;
+    config.quiet = std::chrono::milliseconds(std::llround(o.quiet_s * 1000.0));
     config.certifier.certificate.max_relative_bound = o.max_relative_bound;
     const actors::PoseGraphTeamResult result =
         actors::RunPoseGraphTeam(graphs, config, std::chrono::duration<double>(o.timeout_s));
     nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));
-    j["file"] = o.file;
-    j["poses"] = graph.n;
-    j["edges"] = static_cast<int>(graph.edges.size());
-    j["quiet_seconds"] = std::chrono::duration<double>(kQuiet).count();
-    if (o.json) {
-        std::printf("%s\n", j.dump(2).c_str());
-    } else {
-        PrintText(j);
-    }
-    return j["certified"].get<bool>() ? kExitDone : kExitNotCertified;
+    return PrintDistributedReport(&j, graph, o);
 }
 
 }  // namespace certislam::bin

@@ -18,13 +18,22 @@ struct DistributedSolveOptions {
     double timeout_s = 600;  ///< give up (not certified) after this long
     bool json = false;       ///< one JSON object on stdout
     double max_relative_bound = 1e-6;  ///< certified needs a relative bound at most this
+    double quiet_s = 0.3;              ///< done: certified and unchanged this long
+    std::string transport = "inproc";  ///< inproc (one process), ipc or tcp (robot processes)
 };
 
 /// The report of a pose-graph team run (cost, verdict, team rounds, bytes between robots by
 /// actor and robot, certificate rounds and Lanczos steps); `"path": "distributed"`.
-nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& result, int robots);
+nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& result, int robots,
+                              const std::string& transport = "inproc");
 
-/// Runs the team on `graph`; prints the report; returns the command's exit code.
+/// Adds the file's fields to the team's report `j` and prints it (JSON or text); returns the
+/// command's exit code (certified or not).
+int PrintDistributedReport(nlohmann::json* j, const slam::PoseGraph& graph,
+                           const DistributedSolveOptions& options);
+
+/// Runs the team on `graph` over `options.transport`; prints the report; returns the command's
+/// exit code.
 int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOptions& options);
 
 }  // namespace certislam::bin

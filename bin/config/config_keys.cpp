@@ -44,6 +44,9 @@ std::vector<ConfigKey> TopKeys() {
              {"move_aside", actors::StaleLogPolicy::kMoveAside}},
             "a log of another mission or a corrupt one: refuse to start, or move it to "
             "FILE.stale-N and start afresh"),
+        Num<double>(
+            "quiet_s", [](TeamConfig & c, int) -> auto& { return c.quiet_s; }, {0.0, 3600.0},
+            "a robot is done once certified and unchanged this long"),
     };
 }
 
@@ -295,6 +298,11 @@ std::vector<ConfigKey> MappingAndNetworkKeys() {
             "network.<robot>.secret_key",
             [](TeamConfig & c, int r) -> auto& { return c.network[r].secret_key; },
             "PREFIX.key, read by that robot only"),
+        Str(
+            "network.<robot>.ipc_dir",
+            [](TeamConfig & c, int r) -> auto& { return c.network[r].ipc_dir; },
+            "robots of one host: edges are Unix sockets in this folder, not tcp (no CURVE; "
+            "the folder's permissions guard them)"),
     };
 }
 

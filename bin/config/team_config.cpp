@@ -4,6 +4,7 @@
 
 #include <yaml-cpp/yaml.h>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -24,6 +25,8 @@
 
 namespace certislam::bin {
 namespace {
+
+constexpr size_t kMaxIpcPath = 107;  ///< sockaddr_un's sun_path without its NUL
 
 using nlohmann::json;
 
@@ -94,6 +97,7 @@ TeamConfig LoadTeamConfig(const std::string& path) {
         throw std::runtime_error(path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
     }
     ApplyConfigFile(root, &config);
+    config.node.quiet = std::chrono::milliseconds(std::llround(config.quiet_s * 1000.0));
     if (!root["robots"]) throw std::runtime_error(path + ": robots: missing");
     if (!root["source"]) throw std::runtime_error(path + ": source: missing");
     FinishSourceConfig(path, config.robots, &config.source);
@@ -134,7 +138,7 @@ actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot) {
     return node;
 }
 
-actors::TeamWiring TcpWiring(const TeamConfig& config, int robot) {
+actors::TeamWiring NetworkWiring(const TeamConfig& config, int robot) {
     actors::TeamWiring wiring;
     wiring.robot = robot;
     wiring.robots = config.robots;
@@ -144,16 +148,29 @@ actors::TeamWiring TcpWiring(const TeamConfig& config, int robot) {
                                   actors::Edge::kMap};
     bool curve = true;
     for (int r : config.robots) {
-        if (!config.network.count(r) || config.network.at(r).base_port <= 0) {
-            throw std::runtime_error(config.path + ": network." + std::to_string(r) +
-                                     ".base_port: missing or not > 0");
+        const std::string key = "network." + std::to_string(r);
+        const auto it = config.network.find(r);
+        if (it == config.network.end() ||
+            (it->second.base_port <= 0 && it->second.ipc_dir.empty())) {
+            throw std::runtime_error(config.path + ": " + key +
+                                     ".base_port: missing or not > 0 (or give ipc_dir)");
         }
-        const RobotEndpointConfig& net = config.network.at(r);
+        const RobotEndpointConfig& net = it->second;
         wiring.addresses[r][actors::Edge::kKeyframes] =
             "inproc://certislam/r" + std::to_string(r) + "/keyframes";
         int port = net.base_port;
         for (const auto edge : edges) {
-            wiring.addresses[r][edge] = "tcp://" + net.host + ":" + std::to_string(++port);
+            wiring.addresses[r][edge] = net.ipc_dir.empty()
+                                            ? "tcp://" + net.host + ":" + std::to_string(++port)
+                                            : "ipc://" + net.ipc_dir + "/r" + std::to_string(r) +
+                                                  "." + actors::EdgeName(edge);
+        }
+        // sockaddr_un holds 107 bytes of path: a longer one would be cut silently.
+        if (!net.ipc_dir.empty() &&
+            net.ipc_dir.size() + std::to_string(r).size() + 16 > kMaxIpcPath) {
+            throw std::runtime_error(config.path + ": " + key + ".ipc_dir: \"" + net.ipc_dir +
+                                     "\" is too long for a Unix socket path (at most " +
+                                     std::to_string(kMaxIpcPath - 16) + " characters)");
         }
         curve = curve && !net.public_key.empty();
         if (!net.public_key.empty())

@@ -21,6 +21,8 @@ struct RobotEndpointConfig {
     int base_port = 0;               ///< edges on base_port + 1 .. base_port + 7 (map last)
     std::string public_key;          ///< PREFIX.pub of `certislam keygen` (empty: no CURVE)
     std::string secret_key;          ///< PREFIX.key, read only by the robot itself
+    /// Set: the robot's edges are Unix sockets DIR/r<K>.<edge> (robots of one host), not tcp
+    std::string ipc_dir;
 };
 
 /// Everything the configuration file says.
@@ -31,7 +33,8 @@ struct TeamConfig {
     std::map<int, RobotEndpointConfig> network;  ///< robot mode: per robot
     std::string log_dir;  ///< durable per-robot logs here (replayed on start); empty: none
     actors::StaleLogPolicy log_stale = actors::StaleLogPolicy::kRefuse;  ///< another mission's log
-    std::string path;  ///< the file it came from (for messages)
+    double quiet_s = 1.5;  ///< a robot is done once certified and unchanged this long
+    std::string path;      ///< the file it came from (for messages)
 };
 
 /// The node settings of `robot`: its durable log paths under log_dir, checked against the
@@ -43,8 +46,9 @@ actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot);
 /// std::runtime_error naming the file, the line and the key path.
 TeamConfig LoadTeamConfig(const std::string& path);
 
-/// The wiring of `robot` over tcp (robot mode; CURVE when keys are configured).
-actors::TeamWiring TcpWiring(const TeamConfig& config, int robot);
+/// The wiring of `robot` as a process of its own (robot mode): tcp (CURVE when keys are
+/// configured), or Unix sockets for robots with network.<robot>.ipc_dir.
+actors::TeamWiring NetworkWiring(const TeamConfig& config, int robot);
 
 /// Writes each robot's trajectory (TUM) and the report (`report_name`; none when empty) into
 /// `dir` (nothing when empty); returns the JSON report. Per robot, where `source` has a reference:

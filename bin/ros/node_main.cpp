@@ -34,7 +34,7 @@ nlohmann::json RunNode(const Options& options, int argc, char** argv) {
     TeamConfig config = LoadTeamConfig(options.config_path);
     if (!options.log_dir.empty()) config.log_dir = options.log_dir;
     const RosNodeConfig ros_config = LoadRosNodeConfig(config, options.id);
-    const actors::TeamWiring wiring = TcpWiring(config, options.id);
+    const actors::TeamWiring wiring = NetworkWiring(config, options.id);
     const actors::RobotNodeConfig node_config = NodeConfigFor(config, options.id);
     actors::RosBridge::Init(&argc, argv, "certislam_robot" + std::to_string(options.id));
 

@@ -141,3 +141,45 @@ TEST(RobotPoseGraph, TwoProcessesOverTcpCertifyTheInProcessOptimum) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(SolveDistributed, RobotProcessesOverIpcAndTcpCertifyTheInProcessOptimum) {
+    const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --robots 1 --quiet");
+    for (const std::string transport : {"ipc", "tcp"}) {
+        const auto team = Json("solve " + Data("smallGrid3D.g2o") +
+                               " --robots 3 --distributed --timeout 120 --transport " + transport);
+        ASSERT_FALSE(team.is_discarded()) << transport;
+        EXPECT_EQ(team["transport"], transport);
+        EXPECT_EQ(team["verdict"], "certified") << transport;
+        EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), kRelCost);
+        EXPECT_GE(team["certificate_rounds"].get<int>(), 1);
+        // Each robot its own process: its bytes and its peak RSS, measured by the parent.
+        EXPECT_EQ(team["bytes_between_robots"]["by_robot"].size(), 3u);
+        EXPECT_GT(team["bytes_between_robots"]["by_actor"]["certifier"].get<std::uint64_t>(), 0u);
+        ASSERT_EQ(team["peak_rss_mb_by_robot"].size(), 3u) << transport;
+        for (const auto& [robot, mb] : team["peak_rss_mb_by_robot"].items()) {
+            EXPECT_GT(mb.get<double>(), 1.0) << robot;
+            EXPECT_LE(mb.get<double>(), team["peak_rss_mb"].get<double>()) << robot;
+        }
+        EXPECT_GE(team["wall_seconds"].get<double>(), team["seconds"].get<double>());
+    }
+}
+
+TEST(SolveDistributed, TransportNeedsDistributedAndAnIpcPathMustFit) {
+    const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " solve " + Data("tinyGrid3D.g2o") +
+                                " --transport tcp 2>&1");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("--transport tcp needs --distributed"), std::string::npos) << r.out;
+    const std::string long_dir(120, 'x');
+    const std::string config = Write(
+        "ipc.yaml",
+        PoseGraphConfig("network:\n  0: {ipc_dir: /tmp/" + long_dir + "}\n  1: {ipc_dir: /tmp}\n"));
+    const ShellResult robot =
+        Shell(std::string(CERTISLAM_BINARY) + " robot " + config + " --id 1 --timeout 5 2>&1");
+    EXPECT_EQ(robot.exit_code, 1) << robot.out;
+    EXPECT_NE(robot.out.find("network.0.ipc_dir"), std::string::npos) << robot.out;
+    EXPECT_NE(robot.out.find("too long for a Unix socket path"), std::string::npos) << robot.out;
+}
+
+}  // namespace

@@ -1,0 +1,278 @@
+// The distributed solve as separate robot processes: a team configuration in a private folder,
+// one `certislam robot` per robot (killed with this process), their reports merged.
+#include "bin/solve_processes.h"
+
+#include <fcntl.h>
+#include <google/protobuf/util/json_util.h>
+#include <netinet/in.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+
+#include "bin/command.h"
+#include "slam/core/graph_split.h"
+
+namespace certislam::bin {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr double kGraceSeconds = 30.0;  ///< past --timeout before the robots are killed
+constexpr int kEdgePorts = 7;           ///< tcp ports per robot: base_port + 1 .. + 7
+
+/// One robot process.
+struct Child {
+    int robot = 0;
+    pid_t pid = -1;
+    std::string out, log;  ///< its stdout (the JSON report) and stderr
+    int status = 0;        ///< wait status
+    bool exited = false;
+    double peak_rss_mb = 0.0;  ///< its ru_maxrss, from wait4
+};
+
+/// True when no process listens on 127.0.0.1:base+1 .. base+7 now.
+bool PortsFree(int base) {
+    for (int port = base + 1; port <= base + kEdgePorts; ++port) {
+        const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+        if (fd < 0) return false;
+        sockaddr_in addr{};
+        addr.sin_family = AF_INET;
+        addr.sin_port = htons(static_cast<std::uint16_t>(port));
+        addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0;
+        ::close(fd);
+        if (!ok) return false;
+    }
+    return true;
+}
+
+/// Base ports for `robots` robots, each with 7 free ports, from a start spread by the pid.
+std::vector<int> FreeBasePorts(int robots) {
+    std::vector<int> bases;
+    for (int base = 20000 + static_cast<int>(::getpid() % 2000) * 16;
+         static_cast<int>(bases.size()) < robots; base += kEdgePorts + 1) {
+        if (base + kEdgePorts > 65535) throw std::runtime_error("no free tcp ports on 127.0.0.1");
+        if (PortsFree(base)) bases.push_back(base);
+    }
+    return bases;
+}
+
+/// The team configuration (JSON, which YAML reads) of the split: a pose-graph source with the
+/// partition's ranges (a folder keeps its own robots), this solve's threshold and quiet time.
+nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partition& partition,
+                            const fs::path& dir) {
+    nlohmann::json config;
+    const int robots = partition.num_robots();
+    for (int k = 0; k < robots; ++k) config["robots"].push_back(k);
+    config["quiet_s"] = o.quiet_s;
+    config["certifier"]["max_relative_bound"] = o.max_relative_bound;
+    config["source"] = {{"kind", "pose_graph"}, {"graph", fs::absolute(o.file).string()}};
+    if (!fs::is_directory(o.file)) {
+        for (int k = 0; k < robots; ++k) {
+            config["source"]["ranges"][std::to_string(k)] = {{"begin", partition.begin[k]},
+                                                             {"end", partition.begin[k + 1]}};
+        }
+    }
+    const std::vector<int> ports =
+        o.transport == "tcp" ? FreeBasePorts(robots) : std::vector<int>{};
+    for (int k = 0; k < robots; ++k) {
+        config["network"][std::to_string(k)] =
+            o.transport == "tcp" ? nlohmann::json{{"host", "127.0.0.1"}, {"base_port", ports[k]}}
+                                 : nlohmann::json{{"ipc_dir", dir.string()}};
+    }
+    return config;
+}
+
+/// Starts `exe robot CONFIG --id K --json --timeout T`, stdout and stderr to files; the child
+/// dies with this process (PR_SET_PDEATHSIG).
+pid_t Spawn(const std::vector<std::string>& args, const std::string& out, const std::string& log) {
+    const int out_fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+    const int log_fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+    if (out_fd < 0 || log_fd < 0) throw std::runtime_error(out + ": cannot create");
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    const pid_t parent = ::getpid();
+    const pid_t pid = ::fork();
+    if (pid == 0) {  // only async-signal-safe calls until exec
+        ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+        if (::getppid() != parent) ::_exit(127);
+        ::dup2(out_fd, STDOUT_FILENO);
+        ::dup2(log_fd, STDERR_FILENO);
+        ::execv(argv[0], argv.data());
+        ::_exit(127);
+    }
+    ::close(out_fd);
+    ::close(log_fd);
+    if (pid < 0) throw std::runtime_error("fork failed for " + args[0]);
+    return pid;
+}
+
+/// Waits for every child (peak RSS from wait4); kills those still running at `deadline`.
+void WaitAll(std::vector<Child>* children, Clock::time_point deadline) {
+    size_t running = children->size();
+    bool killed = false;
+    while (running > 0) {
+        int status = 0;
+        rusage usage{};
+        const pid_t pid = ::wait4(-1, &status, WNOHANG, &usage);
+        if (pid > 0) {
+            for (auto& c : *children) {
+                if (c.pid != pid) continue;
+                c.exited = true;
+                c.status = status;
+                c.peak_rss_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;  // KiB
+                --running;
+            }
+        } else if (pid < 0 && errno == ECHILD) {
+            break;
+        } else {
+            if (!killed && Clock::now() > deadline) {
+                for (const auto& c : *children) {
+                    if (!c.exited) ::kill(c.pid, SIGKILL);
+                }
+                killed = true;
+            }
+            std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        }
+    }
+}
+
+std::string Slurp(const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+}
+
+/// The last line of a robot's stderr (its error message).
+std::string LastLine(const std::string& text) {
+    std::string line, last;
+    std::istringstream in(text);
+    while (std::getline(in, line)) {
+        if (!line.empty()) last = line;
+    }
+    return last.empty() ? "(no message)" : last;
+}
+
+template <typename T>
+T Field(const nlohmann::json& j, const char* key, int robot) {
+    if (!j.contains(key)) {
+        throw std::runtime_error("robot " + std::to_string(robot) + "'s report: " + key +
+                                 ": missing");
+    }
+    return j.at(key).get<T>();
+}
+
+}  // namespace
+
+actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>& reports) {
+    actors::PoseGraphTeamResult r;
+    if (reports.empty()) throw std::runtime_error("no robot reports");
+    r.done = true;
+    bool sync = true;
+    for (const auto& j : reports) {
+        const int robot = Field<int>(j, "robot", -1);
+        r.done = r.done && Field<bool>(j, "certified", robot);
+        const auto steps = Field<std::uint64_t>(j, "iterations", robot);
+        r.iterations_by_robot[robot] = steps;
+        r.iterations = std::max(r.iterations, steps);
+        const auto bytes =
+            Field<std::map<std::string, std::uint64_t>>(j, "bytes_sent_by_actor", robot);
+        for (const auto& [actor, n] : bytes) {
+            r.bytes_by_actor[actor] += n;
+            r.bytes_by_robot[robot] += n;
+            r.bytes_between_robots += n;
+        }
+        r.seconds = std::max(r.seconds, Field<double>(j, "seconds", robot));
+        r.escapes += Field<int>(j, "escapes", robot);
+        sync = sync && Field<std::string>(j, "solver_mode", robot) == "synchronous";
+    }
+    r.solver_mode = sync ? "synchronous" : "asynchronous";
+    const nlohmann::json& anchor = reports.front();
+    const int id = Field<int>(anchor, "robot", -1);
+    r.certificate_rounds = Field<int>(anchor, "certificate_rounds", id);
+    r.lanczos_steps = Field<std::uint64_t>(anchor, "lanczos_steps", id);
+    r.rank = Field<int>(anchor, "rank", id);
+    r.restarts = Field<int>(anchor, "restarts", id);
+    r.fallbacks = Field<int>(anchor, "central_fallbacks", id);
+    if (anchor.contains("certificate_report")) {
+        v1::CertificateReport report;
+        const auto status = google::protobuf::util::JsonStringToMessage(
+            anchor.at("certificate_report").dump(), &report);
+        if (!status.ok()) {
+            throw std::runtime_error("robot " + std::to_string(id) +
+                                     "'s report: certificate_report: " + status.ToString());
+        }
+        r.report = report;
+    }
+    return r;
+}
+
+int RunProcessSolve(const slam::PoseGraph& graph, const DistributedSolveOptions& o) {
+    const slam::Partition partition =
+        o.robots > 0 ? slam::ContiguousPartition(graph.n, o.robots) : slam::PartitionFromIds(graph);
+    char templ[] = "/tmp/certislam-solve-XXXXXX";  // 0700: the ipc sockets' guard
+    if (::mkdtemp(templ) == nullptr) throw std::runtime_error("cannot create a folder in /tmp");
+    const fs::path dir = templ;
+    const std::string config = (dir / "team.json").string();
+    std::ofstream(config) << TeamConfigOf(o, partition, dir).dump(2) << "\n";
+    const std::string exe = fs::read_symlink("/proc/self/exe").string();
+    const auto start = Clock::now();
+    std::vector<Child> children(static_cast<size_t>(partition.num_robots()));
+    for (int k = 0; k < partition.num_robots(); ++k) {
+        Child& c = children[static_cast<size_t>(k)];
+        c.robot = k;
+        c.out = (dir / ("robot" + std::to_string(k) + ".json")).string();
+        c.log = (dir / ("robot" + std::to_string(k) + ".log")).string();
+        c.pid = Spawn({exe, "robot", config, "--id", std::to_string(k), "--json", "--timeout",
+                       std::to_string(o.timeout_s)},
+                      c.out, c.log);
+    }
+    WaitAll(&children, start + std::chrono::duration_cast<Clock::duration>(
+                                   std::chrono::duration<double>(o.timeout_s + kGraceSeconds)));
+    const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+    std::vector<nlohmann::json> reports;
+    nlohmann::json rss = nlohmann::json::object();
+    double peak = 0.0;
+    for (const auto& c : children) {
+        const int code = WIFEXITED(c.status) ? WEXITSTATUS(c.status) : -1;
+        auto j = nlohmann::json::parse(Slurp(c.out), nullptr, false);
+        if ((code != kExitDone && code != kExitNotCertified) || j.is_discarded()) {
+            std::fprintf(stderr, "certislam solve: error: %s: robot %d (%s) %s: %s\n",
+                         o.file.c_str(), c.robot, o.transport.c_str(),
+                         code < 0 ? "was killed" : ("exited " + std::to_string(code)).c_str(),
+                         LastLine(Slurp(c.log)).c_str());
+            fs::remove_all(dir);
+            return code == kExitBadInput ? kExitBadInput : kExitNotCertified;
+        }
+        reports.push_back(std::move(j));
+        rss[std::to_string(c.robot)] = c.peak_rss_mb;
+        peak = std::max(peak, c.peak_rss_mb);
+    }
+    fs::remove_all(dir);
+    nlohmann::json j =
+        TeamResultJson(MergeRobotReports(reports), partition.num_robots(), o.transport);
+    j["peak_rss_mb"] = peak;  // the largest robot process
+    j["peak_rss_mb_by_robot"] = rss;
+    j["wall_seconds"] = wall;  // processes started, graph read, solved, certified, exited
+    return PrintDistributedReport(&j, graph, o);
+}
+
+}  // namespace certislam::bin

@@ -2,6 +2,7 @@
 #include "actors/pose_graph_team.h"
 
 #include <algorithm>
+#include <cmath>
 #include <memory>
 #include <thread>
 
@@ -25,6 +26,12 @@ PoseGraphTeamResult SummariseNodes(const std::vector<const PoseGraphNode*>& node
             out.bytes_between_robots += bytes;
         }
         out.escapes += node->Certifier().Escapes();
+        for (const auto& pose : s.trajectory) {
+            const Eigen::Isometry3d& T = pose.T_world_body;
+            out.out_of_plane_m = std::max(out.out_of_plane_m, std::abs(T.translation().z()));
+            const double cos_tilt = std::clamp(T.linear()(2, 2), -1.0, 1.0);
+            out.out_of_plane_rad = std::max(out.out_of_plane_rad, std::acos(cos_tilt));
+        }
         sync = sync && s.rounds_converged && !s.rounds_gave_up;
     }
     out.solver_mode = sync ? "synchronous" : "asynchronous";

@@ -35,6 +35,10 @@ struct PoseGraphTeamResult {
     std::string solver_mode = "asynchronous";
     int restarts = 0;   ///< adaptive restarts of the rounds (robot 0's count)
     int fallbacks = 0;  ///< certificate rounds the anchor checked centrally instead
+    /// How far the poses leave the plane z = 0 (a planar graph's lift, slam::LiftPlanar): the
+    /// largest |z| and the largest tilt of a pose's z axis
+    double out_of_plane_m = 0.0;
+    double out_of_plane_rad = 0.0;
 };
 
 /// What `nodes` (the anchor first) have done so far: counters summed or maxed over them, the

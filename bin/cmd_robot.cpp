@@ -55,6 +55,7 @@ int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
     j["robot"] = id;
     j["bytes_sent"] = result.bytes_between_robots;
     j["bytes_sent_by_actor"] = result.bytes_by_actor;
+    j["out_of_plane"] = {{"m", result.out_of_plane_m}, {"rad", result.out_of_plane_rad}};
     if (result.report) {  // the anchor's certificate as its schema says (MergeRobotReports)
         std::string text;
         if (google::protobuf::util::MessageToJsonString(*result.report, &text).ok()) {

@@ -15,6 +15,8 @@
 namespace certislam::bin {
 namespace {
 
+constexpr double kPlanarTolerance = 1e-6;  ///< metres and radians off the plane z = 0
+
 double PeakRssMb() {
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
@@ -82,8 +84,20 @@ nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots,
     return j;
 }
 
-int PrintDistributedReport(nlohmann::json* j, const slam::PoseGraph& graph,
-                           const DistributedSolveOptions& o) {
+int PrintDistributedReport(nlohmann::json* j, const actors::PoseGraphTeamResult& result,
+                           const slam::PoseGraph& graph, const DistributedSolveOptions& o) {
+    if (graph.d == 2) {
+        // Solved as its lift into SE(3): the lifted optimum is the planar one only when planar.
+        (*j)["lifted_from_planar"] = true;
+        (*j)["out_of_plane"] = {{"m", result.out_of_plane_m}, {"rad", result.out_of_plane_rad}};
+        if ((*j)["certified"].get<bool>() &&
+            std::max(result.out_of_plane_m, result.out_of_plane_rad) > kPlanarTolerance) {
+            (*j)["certified"] = false;
+            (*j)["verdict"] = "inconclusive";
+            (*j)["reason"] = "the certified optimum of the planar graph's lift leaves the plane";
+            j->erase("suboptimality_bound");
+        }
+    }
     (*j)["file"] = o.file;
     (*j)["poses"] = graph.n;
     (*j)["edges"] = static_cast<int>(graph.edges.size());
@@ -115,7 +129,7 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
     const actors::PoseGraphTeamResult result =
         actors::RunPoseGraphTeam(graphs, config, std::chrono::duration<double>(o.timeout_s));
     nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));
-    return PrintDistributedReport(&j, graph, o);
+    return PrintDistributedReport(&j, result, graph, o);
 }
 
 }  // namespace certislam::bin

@@ -27,10 +27,11 @@ struct DistributedSolveOptions {
 nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& result, int robots,
                               const std::string& transport = "inproc");
 
-/// Adds the file's fields to the team's report `j` and prints it (JSON or text); returns the
-/// command's exit code (certified or not).
-int PrintDistributedReport(nlohmann::json* j, const slam::PoseGraph& graph,
-                           const DistributedSolveOptions& options);
+/// Adds the file's fields to the team's report `j` (of `result`) and prints it (JSON or text);
+/// returns the command's exit code (certified or not). A planar graph's lift certifies the
+/// planar graph only when its optimum stays in the plane (else "inconclusive").
+int PrintDistributedReport(nlohmann::json* j, const actors::PoseGraphTeamResult& result,
+                           const slam::PoseGraph& graph, const DistributedSolveOptions& options);
 
 /// Runs the team on `graph` over `options.transport`; prints the report; returns the command's
 /// exit code.

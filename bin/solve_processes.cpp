@@ -203,6 +203,9 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
         r.seconds = std::max(r.seconds, Field<double>(j, "seconds", robot));
         r.escapes += Field<int>(j, "escapes", robot);
         sync = sync && Field<std::string>(j, "solver_mode", robot) == "synchronous";
+        const auto plane = Field<nlohmann::json>(j, "out_of_plane", robot);
+        r.out_of_plane_m = std::max(r.out_of_plane_m, plane.value("m", 0.0));
+        r.out_of_plane_rad = std::max(r.out_of_plane_rad, plane.value("rad", 0.0));
     }
     r.solver_mode = sync ? "synchronous" : "asynchronous";
     const nlohmann::json& anchor = reports.front();
@@ -267,12 +270,12 @@ int RunProcessSolve(const slam::PoseGraph& graph, const DistributedSolveOptions&
         peak = std::max(peak, c.peak_rss_mb);
     }
     fs::remove_all(dir);
-    nlohmann::json j =
-        TeamResultJson(MergeRobotReports(reports), partition.num_robots(), o.transport);
+    const actors::PoseGraphTeamResult result = MergeRobotReports(reports);
+    nlohmann::json j = TeamResultJson(result, partition.num_robots(), o.transport);
     j["peak_rss_mb"] = peak;  // the largest robot process
     j["peak_rss_mb_by_robot"] = rss;
     j["wall_seconds"] = wall;  // processes started, graph read, solved, certified, exited
-    return PrintDistributedReport(&j, graph, o);
+    return PrintDistributedReport(&j, result, graph, o);
 }
 
 }  // namespace certislam::bin

@@ -38,9 +38,7 @@ std::vector<Eigen::Isometry3d> InitialPoses(const PoseGraph& graph) {
 }
 
 void CheckInput(const PoseGraph& graph, const Partition& partition) {
-    if (graph.d != 3) {
-        throw std::invalid_argument("the graph is planar (d = 2): only 3D graphs are split");
-    }
+    if (graph.d != 3) throw std::invalid_argument("only planar and 3D graphs are split");
     if (partition.begin.size() < 2 || partition.begin.front() != 0 ||
         partition.begin.back() != graph.n) {
         throw std::invalid_argument("the partition must cover poses [0, " +
@@ -65,9 +63,39 @@ void CheckInput(const PoseGraph& graph, const Partition& partition) {
     }
 }
 
+/// [A 0; 0 1] for a d x d block A (d <= 3).
+Eigen::Matrix3d Embed(const Eigen::MatrixXd& A) {
+    Eigen::Matrix3d out = Eigen::Matrix3d::Identity();
+    out.topLeftCorner(A.rows(), A.cols()) = A;
+    return out;
+}
+
 }  // namespace
 
-std::vector<RobotGraph> SplitGraph(const PoseGraph& graph, const Partition& partition) {
+PoseGraph LiftPlanar(const PoseGraph& graph) {
+    if (graph.d != 2) return graph;
+    PoseGraph out = graph;
+    out.d = 3;
+    for (auto& e : out.edges) {
+        e.R = Embed(e.R);
+        e.t = Eigen::Vector3d(e.t(0), e.t(1), 0.0);
+    }
+    if (graph.initial_guess) {
+        Eigen::MatrixXd lifted = Eigen::MatrixXd::Zero(3, 4 * graph.n);
+        for (int g = 0; g < graph.n; ++g) {
+            const Eigen::MatrixXd& block = *graph.initial_guess;
+            lifted.block<3, 3>(0, BlockColumn(g, 3)) =
+                Embed(block.block(0, BlockColumn(g, 2), 2, 2));
+            lifted.block<2, 1>(0, BlockColumn(g, 3) + 3) =
+                block.block<2, 1>(0, BlockColumn(g, 2) + 2);
+        }
+        out.initial_guess = lifted;
+    }
+    return out;
+}
+
+std::vector<RobotGraph> SplitGraph(const PoseGraph& planar_or_3d, const Partition& partition) {
+    const PoseGraph graph = LiftPlanar(planar_or_3d);
     CheckInput(graph, partition);
     const std::vector<Eigen::Isometry3d> initial = InitialPoses(graph);
     std::vector<RobotGraph> out(partition.num_robots());

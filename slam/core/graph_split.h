@@ -21,12 +21,17 @@ struct RobotGraph {
     std::vector<LoopClosure> shared;         ///< edges with the head own and the tail not
 };
 
-/// Splits a 3D graph: robot k owns global poses [partition.begin[k], partition.begin[k + 1]).
-/// Initial guesses are the graph's VERTEX estimates when it has them, else the chain of edges
-/// g -> g + 1 composed from pose 0 (identity where a step has no such edge). Every edge keeps
-/// its measurement and weights. Throws std::invalid_argument when the graph is planar, the
-/// partition does not cover [0, n), or two edges join the same pair of poses (a robot's solver
-/// keeps one edge per pose pair); the message names the edges.
+/// A planar graph embedded in SE(3): rotations about z, z = 0, the same weights. A planar X has
+/// the same cost in both, so the lifted optimum is a lower bound on the planar one, and equal to
+/// it when the lifted optimum is planar. A 3D graph is returned as it is.
+PoseGraph LiftPlanar(const PoseGraph& graph);
+
+/// Splits a graph (a planar one as LiftPlanar embeds it): robot k owns global poses
+/// [partition.begin[k], partition.begin[k + 1]). Initial guesses are the graph's VERTEX estimates
+/// when it has them, else the chain of edges g -> g + 1 composed from pose 0 (identity where a step
+/// has no such edge). Every edge keeps its measurement and weights. Throws std::invalid_argument
+/// when the partition does not cover [0, n), or two edges join the same pair of poses (a robot's
+/// solver keeps one edge per pose pair); the message names the edges.
 std::vector<RobotGraph> SplitGraph(const PoseGraph& graph, const Partition& partition);
 
 }  // namespace certislam::slam

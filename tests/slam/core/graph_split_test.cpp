@@ -1,10 +1,12 @@
 // SplitGraph: a hand-built 3D graph split into robots keeps every edge once (intra, inter with
 // the tail's robot, shared with the head's), maps ids to robot-local indices, and refuses what a
-// robot's solver cannot hold.
+// robot's solver cannot hold; a planar graph is split as its lift into SE(3).
 #include "slam/core/graph_split.h"
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <cmath>
 #include <stdexcept>
 
 namespace certislam::slam {
@@ -64,15 +66,67 @@ TEST(SplitGraph, VertexGuessesAreUsedWhenTheGraphHasThem) {
     EXPECT_NEAR(robots[1].initial[1].translation().y(), 30.0, 1e-12);
 }
 
-TEST(SplitGraph, RefusesParallelEdgesPlanarGraphsAndBadPartitions) {
+TEST(SplitGraph, RefusesParallelEdgesAndBadPartitions) {
     PoseGraph parallel = Chain();
     parallel.edges.push_back(Edge(1, 0, -1.0));
     EXPECT_THROW(SplitGraph(parallel, Partition{{0, 2, 5}}), std::invalid_argument);
-    PoseGraph planar = Chain();
-    planar.d = 2;
-    EXPECT_THROW(SplitGraph(planar, Partition{{0, 2, 5}}), std::invalid_argument);
     EXPECT_THROW(SplitGraph(Chain(), Partition{{0, 2, 4}}), std::invalid_argument);
     EXPECT_THROW(SplitGraph(Chain(), Partition{{0, 2, 2, 5}}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace certislam::slam
+
+namespace certislam::slam {
+namespace {
+
+/// A planar triangle with a 90 degree turn per edge and a VERTEX guess.
+PoseGraph PlanarTriangle() {
+    PoseGraph g;
+    g.d = 2;
+    g.n = 3;
+    for (int i = 0; i < 3; ++i) {
+        RelativePoseMeasurement e;
+        e.i = i;
+        e.j = (i + 1) % 3;
+        e.R = Eigen::Rotation2Dd(0.5 * M_PI).toRotationMatrix();
+        e.t = Eigen::Vector2d(1.0 + i, -0.5);
+        e.kappa = 4.0 + i;
+        e.tau = 7.0 - i;
+        g.edges.push_back(e);
+    }
+    Eigen::MatrixXd guess = Eigen::MatrixXd::Zero(2, 3 * g.n);
+    for (int k = 0; k < g.n; ++k) {
+        guess.block<2, 2>(0, 3 * k) = Eigen::Rotation2Dd(0.3 * k).toRotationMatrix();
+        guess.block<2, 1>(0, 3 * k + 2) = Eigen::Vector2d(k, 2.0 * k);
+    }
+    g.initial_guess = guess;
+    return g;
+}
+
+TEST(LiftPlanar, RotationsAboutZAtZeroHeightWithTheSameWeights) {
+    const PoseGraph planar = PlanarTriangle();
+    const PoseGraph lifted = LiftPlanar(planar);
+    ASSERT_EQ(lifted.d, 3);
+    ASSERT_EQ(lifted.edges.size(), planar.edges.size());
+    for (size_t k = 0; k < planar.edges.size(); ++k) {
+        const auto& e = lifted.edges[k];
+        EXPECT_TRUE(e.R.topLeftCorner(2, 2).isApprox(planar.edges[k].R));
+        EXPECT_EQ(e.R.col(2), Eigen::Vector3d::UnitZ());
+        EXPECT_EQ(e.R.row(2), Eigen::RowVector3d::UnitZ());
+        EXPECT_EQ(e.t, Eigen::Vector3d(planar.edges[k].t(0), planar.edges[k].t(1), 0.0));
+        EXPECT_EQ(e.kappa, planar.edges[k].kappa);
+        EXPECT_EQ(e.tau, planar.edges[k].tau);
+    }
+    ASSERT_TRUE(lifted.initial_guess.has_value());
+    EXPECT_NEAR((*lifted.initial_guess)(1, 4 * 2 + 3), 4.0, 1e-15);
+    EXPECT_EQ((*lifted.initial_guess)(2, 4 * 2 + 3), 0.0);
+    EXPECT_NEAR((*lifted.initial_guess)(1, 4 * 1), std::sin(0.3), 1e-15);
+    // A split of the planar graph is the split of its lift.
+    const auto robots = SplitGraph(planar, Partition{{0, 1, 3}});
+    ASSERT_EQ(robots.size(), 2u);
+    EXPECT_NEAR(robots[1].initial[1].translation().y(), 4.0, 1e-15);
+    EXPECT_EQ(robots[1].initial[1].translation().z(), 0.0);
 }
 
 }  // namespace

@@ -74,7 +74,7 @@ std::vector<int> FreeBasePorts(int robots) {
 }
 
 /// The team configuration (JSON, which YAML reads) of the split: a pose-graph source with the
-/// partition's ranges (a folder keeps its own robots), this solve's threshold and quiet time.
+/// partition's vertex ranges, this solve's threshold and quiet time.
 nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partition& partition,
                             const fs::path& dir) {
     nlohmann::json config;
@@ -83,11 +83,9 @@ nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partit
     config["quiet_s"] = o.quiet_s;
     config["certifier"]["max_relative_bound"] = o.max_relative_bound;
     config["source"] = {{"kind", "pose_graph"}, {"graph", fs::absolute(o.file).string()}};
-    if (!fs::is_directory(o.file)) {
-        for (int k = 0; k < robots; ++k) {
-            config["source"]["ranges"][std::to_string(k)] = {{"begin", partition.begin[k]},
-                                                             {"end", partition.begin[k + 1]}};
-        }
+    for (int k = 0; k < robots; ++k) {
+        config["source"]["ranges"][std::to_string(k)] = {{"begin", partition.begin[k]},
+                                                         {"end", partition.begin[k + 1]}};
     }
     const std::vector<int> ports =
         o.transport == "tcp" ? FreeBasePorts(robots) : std::vector<int>{};

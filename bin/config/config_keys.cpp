@@ -141,16 +141,19 @@ std::vector<ConfigKey> PoseGraphSourceKeys() {
     return {
         FilePath(
             "source.graph", [](TeamConfig & c, int) -> auto& { return c.source.graph_path; },
-            "the team's pose graph: a 3D g2o file or a dpgo CSV folder (robot<k>/)", "pose_graph"),
+            "the team's pose graph: a g2o file (a planar one lifted to SE(3)) or a dpgo CSV folder "
+            "(robot<k>/)",
+            "pose_graph"),
         Num<int>(
             "source.ranges.<robot>.begin",
             [](TeamConfig & c, int r) -> auto& { return c.source.ranges[r].first; }, non_negative,
-            "first g2o vertex of the robot (all ranges zero: dpgo's contiguous split)",
+            "first vertex of the robot, in file order (a folder: its robots one after another; "
+            "all ranges zero: dpgo's contiguous split)",
             "pose_graph"),
         Num<int>(
             "source.ranges.<robot>.end",
             [](TeamConfig & c, int r) -> auto& { return c.source.ranges[r].second; }, non_negative,
-            "one past the robot's last g2o vertex", "pose_graph"),
+            "one past the robot's last vertex", "pose_graph"),
     };
 }
 

@@ -117,19 +117,15 @@ std::vector<slam::RobotGraph> LoadPoseGraphSource(const std::string& config_path
     if (!read.ok()) throw std::runtime_error(read.error);
     slam::Partition partition;
     try {
-        if (folder) {
-            if (HasRanges(config)) {
-                throw FieldError(config_path, "ranges",
-                                 "only for a g2o file (a folder has robots)");
-            }
+        if (HasRanges(config)) {  // a folder's robots in file order, then split by vertex
+            partition = RangePartition(config_path, robots, config, read.graph.n);
+        } else if (folder) {
             partition = slam::PartitionFromIds(read.graph);
             if (partition.num_robots() != static_cast<int>(robots.size())) {
                 throw FieldError(config_path, "graph",
                                  "the folder holds " + std::to_string(partition.num_robots()) +
                                      " robots, the team " + std::to_string(robots.size()));
             }
-        } else if (HasRanges(config)) {
-            partition = RangePartition(config_path, robots, config, read.graph.n);
         } else {
             partition = slam::ContiguousPartition(read.graph.n, static_cast<int>(robots.size()));
         }

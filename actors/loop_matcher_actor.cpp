@@ -40,6 +40,8 @@ void LoopMatcherConfig::Validate() const {
     Require(request_retry.count() > 0, "request_retry", request_retry.count(), "must be > 0");
     Require(max_rmse_m > 0, "max_rmse_m", max_rmse_m, "must be > 0");
     Require(place_window >= 0, "place_window", place_window, "must be >= 0");
+    Require(max_candidates_per_query >= 0, "max_candidates_per_query", max_candidates_per_query,
+            "must be >= 0");
     pcm.Validate();
     registration.Validate();
 }
@@ -108,6 +110,7 @@ bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
     auto sc = FromProto(*proto);
     if (!sc) return false;
     if (id->index % config_.query_stride != 0 || descriptors_.count(*id)) return true;
+    std::vector<slam::LoopCandidate> candidates;
     for (const auto& [other, other_sc] : descriptors_) {
         // Own keyframe vs anything stored; a lower robot's keyframe vs own ones only.
         const bool own_new = id->robot == RobotId(), own_other = other.robot == RobotId();
@@ -122,10 +125,22 @@ bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
         const auto& c = own_new ? other_sc : *sc;
         const auto best = slam::ScanContextDistance(q, c);
         if (best.distance < config_.max_sc_distance) {
-            Consider({query, match, best.distance, best.yaw_rad});
+            candidates.push_back({query, match, best.distance, best.yaw_rad});
         }
     }
     descriptors_.emplace(*id, std::move(*sc));
+    // Best first, so a capped query keeps its most similar places (ties: the older keyframe).
+    std::stable_sort(candidates.begin(), candidates.end(),
+                     [](const auto& a, const auto& b) { return a.sc_distance < b.sc_distance; });
+    for (const auto& c : candidates) {
+        int& count = considered_[{c.query.index, c.match.robot}];
+        if (config_.max_candidates_per_query > 0 && count >= config_.max_candidates_per_query) {
+            ++capped_;
+            continue;
+        }
+        ++count;
+        Consider(c);
+    }
     return true;
 }
 

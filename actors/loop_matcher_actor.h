@@ -44,6 +44,10 @@ struct LoopMatcherConfig {
     /// skipped. 0: every candidate is verified (each peer cloud is still fetched only once).
     int place_window = 0;
     bool downsample_replies = true;  ///< cloud replies downsampled at registration.voxel_m
+    /// Candidates registered per own keyframe and robot it is matched against, >= 0: the best
+    /// by Scan Context distance among the descriptors at hand (0: every candidate). In a
+    /// featureless place (a tunnel) one keyframe resembles a whole stretch of the other's.
+    int max_candidates_per_query = 0;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -65,6 +69,8 @@ class LoopMatcherActor final : public NodeActor {
     int Withdrawn() const { return withdrawn_.load(); }
     /// Inter-robot candidates the cloud-request gate skipped so far.
     int Skipped() const { return skipped_.load(); }
+    /// Candidates left out by max_candidates_per_query so far.
+    int Capped() const { return capped_.load(); }
     /// Peer clouds requested so far (distinct keyframes; retries not counted).
     int CloudsRequested() const { return clouds_requested_.load(); }
     /// True once the end-of-loops marker went out.
@@ -111,6 +117,7 @@ class LoopMatcherActor final : public NodeActor {
     std::map<int, std::uint64_t> end_counts_;  ///< robot -> descriptors its end marker counted
     std::uint64_t next_request_ = 0;
     std::map<int, slam::KeyframeOdometry> own_odometry_;  ///< own keyframe -> odometry
+    std::map<std::pair<int, int>, int> considered_;       ///< (own keyframe, robot) -> candidates
     slam::IncrementalPcm pcm_;
     bool pcm_dirty_ = false;  ///< a loop was verified since the last Reconcile()
     std::map<std::pair<slam::PoseId, slam::PoseId>, slam::LoopClosure> sent_;  ///< accepted now
@@ -120,6 +127,7 @@ class LoopMatcherActor final : public NodeActor {
     std::atomic<int> verified_{0};
     std::atomic<int> withdrawn_{0};
     std::atomic<int> skipped_{0};
+    std::atomic<int> capped_{0};
     std::atomic<int> clouds_requested_{0};
     std::atomic<bool> ended_{false};
 };

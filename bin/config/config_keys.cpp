@@ -232,6 +232,10 @@ std::vector<ConfigKey> MatcherKeys() {
             "matcher.place_window",
             [](TeamConfig & c, int) -> auto& { return c.node.matcher.place_window; }, {0.0, 1e6},
             "neighbouring keyframes verified around a place match (0: one)"),
+        Num<int>(
+            "matcher.max_candidates_per_query",
+            [](TeamConfig & c, int) -> auto& { return c.node.matcher.max_candidates_per_query; },
+            {0.0, 1e6}, "best Scan Context candidates registered per keyframe and robot (0: all)"),
         Flag(
             "matcher.downsample_replies",
             [](TeamConfig & c, int) -> auto& { return c.node.matcher.downsample_replies; },

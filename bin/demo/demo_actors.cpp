@@ -15,7 +15,8 @@ namespace certislam::bin {
 namespace {
 
 /// deploy/configs/sim2.json's settings, but every keyframe queries (like the direct pipeline's
-/// query_stride 1) and registration as the pipeline's loop stage sets it (0.4 m voxels).
+/// query_stride 1) with at most two candidates per robot, and registration as the pipeline's
+/// loop stage sets it (0.4 m voxels).
 actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate) {
     actors::RobotNodeConfig config;
     config.mapping = voxel_m > 0;
@@ -28,6 +29,9 @@ actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate)
     config.certifier.distributed = distributed_certificate;
     config.matcher.query_stride = 1;
     config.matcher.max_sc_distance = 0.2;
+    // The two most similar places per keyframe and robot: in a tunnel one keyframe resembles a
+    // whole stretch of the other robot's, and each candidate costs a GICP.
+    config.matcher.max_candidates_per_query = 2;
     config.matcher.registration.voxel_m = 0.4;
     config.matcher.registration.max_correspondence_m = 2.5 * 0.4;
     config.matcher.registration.inlier_distance_m =

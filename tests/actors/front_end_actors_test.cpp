@@ -1,8 +1,9 @@
 // Ingest, descriptor and loop matcher actors of two robots over real inproc sockets on a
 // simulated mission: the loops they publish agree with ground truth, each robot's matcher says
 // end of loops, clouds cross robots only for candidates (through the cloud-request gate, each
-// downsampled at the registration voxel), malformed keyframes are counted, and an end-of-
-// descriptors marker that overtakes the descriptors (a late subscriber) does not end the matcher.
+// downsampled at the registration voxel; at most the best candidates per keyframe when capped),
+// malformed keyframes are counted, and an end-of-descriptors marker that overtakes the
+// descriptors (a late subscriber) does not end the matcher.
 #include <gtest/gtest.h>
 
 #include <thread>
@@ -29,6 +30,8 @@ struct FrontEndRun {
     int inter = 0;                         ///< inter-robot loops among them
     int clouds_requested = 0;              ///< robot 1's cloud requests (distinct)
     int skipped = 0;                       ///< robot 1's candidates the gate skipped
+    int capped = 0;                        ///< robot 1's candidates the per-query cap left out
+    int registered = 0;                    ///< robot 1's registrations (verified + rejected)
 };
 
 /// Runs ingest, descriptor and matcher actors of robots 0 and 1 on the simulated mission and
@@ -109,6 +112,8 @@ FrontEndRun RunFrontEnd(const LoopMatcherConfig& matcher_config) {
     run.inter = inter;
     run.clouds_requested = matchers[1]->CloudsRequested();
     run.skipped = matchers[1]->Skipped();
+    run.capped = matchers[1]->Capped();
+    run.registered = matchers[1]->Verified() + matchers[1]->Rejected();
     return run;
 }
 
@@ -116,7 +121,22 @@ TEST(FrontEndActors, TwoRobotsFindTrueInterRobotLoopsAndRequestOnlyCandidateClou
     const FrontEndRun run = RunFrontEnd(LoopMatcherConfig{});  // place_window 0: no skips
     EXPECT_GE(run.inter, 1);
     EXPECT_EQ(run.skipped, 0);
+    EXPECT_EQ(run.capped, 0);
     EXPECT_GE(run.clouds_requested, run.inter);  // at most one cloud per verified candidate
+}
+
+// One candidate per own keyframe and robot: robot 1 registers at most one per keyframe against
+// robot 0 and one against its own past, leaves the rest out, and still finds true loops.
+TEST(FrontEndActors, CandidateCapRegistersTheBestCandidatePerKeyframeAndRobot) {
+    LoopMatcherConfig config;
+    config.query_stride = 1;  // every keyframe queries: a place matches several keyframes
+    const FrontEndRun all = RunFrontEnd(config);
+    config.max_candidates_per_query = 1;
+    const FrontEndRun run = RunFrontEnd(config);
+    EXPECT_GT(run.capped, 0);
+    EXPECT_LE(run.registered, 2 * kKeyframes);
+    EXPECT_LT(run.registered, all.registered);
+    EXPECT_GE(run.inter, 1);
 }
 
 // One place (a window wider than the mission): after a cloud registered, later candidates of

@@ -4,7 +4,8 @@
 // ("not optimal", lambda_min < 0) while certified RBCD on the same graph is certified, and
 // certified RBCD beats the one-time alignment and odometry, robot by robot, by more than the
 // paper's improvements (robot 1 / robot 2 of its Table I). tunnel-rendezvous is not here yet:
-// its actor graph is not certified within the time (registration in the tunnel is slow).
+// on the loops its front end finds both local searches reach the optimum (none is refused) and
+// its actor graph is certified only near the time limit.
 #include <gtest/gtest.h>
 #include <unistd.h>
 

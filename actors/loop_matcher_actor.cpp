@@ -11,6 +11,7 @@
 #include "actors/convert.h"
 #include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
+#include "slam/frontend/downsample.h"
 
 namespace certislam::actors {
 namespace {
@@ -85,11 +86,7 @@ void LoopMatcherActor::OnStart() {
 }
 
 void LoopMatcherActor::OnOwnKeyframe(const slam::Keyframe& keyframe) {
-    if (keyframe.cloud) {
-        own_clouds_[keyframe.index] = std::make_shared<const slam::RegistrationCloud>(
-            slam::PrepareRegistrationCloud(*keyframe.cloud, config_.registration));
-        if (!config_.downsample_replies) full_clouds_[keyframe.index] = keyframe.cloud;
-    }
+    own_clouds_[keyframe.index] = keyframe.cloud;
     if (own_odometry_.count(keyframe.index)) return;
     slam::KeyframeOdometry odometry{keyframe.T_odom_sensor, 0.0};
     if (const auto before = own_odometry_.find(keyframe.index - 1); before != own_odometry_.end()) {
@@ -172,15 +169,16 @@ void LoopMatcherActor::RequestCloud(std::uint64_t id, const Pending& p) {
 }
 
 slam::PointCloudPtr LoopMatcherActor::ReplyCloud(int index) {
-    if (!config_.downsample_replies) {
-        const auto full = full_clouds_.find(index);
-        return full == full_clouds_.end() ? nullptr : full->second;
-    }
-    // The requester registers at this voxel anyway: a finer cloud would cross for nothing. The
-    // reply shares the kept fine cloud (no copy).
     const auto own = own_clouds_.find(index);
     if (own == own_clouds_.end()) return nullptr;
-    return slam::PointCloudPtr(own->second, &own->second->fine);
+    if (!config_.downsample_replies) return own->second;
+    // The requester registers at this voxel anyway: a finer cloud would cross for nothing.
+    auto& reply = reply_clouds_[index];
+    if (!reply) {
+        reply = std::make_shared<slam::PointCloud>(
+            slam::VoxelDownsample(*own->second, config_.registration.voxel_m));
+    }
+    return reply;
 }
 
 bool LoopMatcherActor::OnCloudRequest(const transport::Message& m) {
@@ -217,8 +215,7 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
     if (T_odom && std::isfinite(reply.travelled_m())) {
         pcm_.SetOdometry(match, {*T_odom, reply.travelled_m()});
     }
-    const auto kept = peer_clouds_[match] = std::make_shared<const slam::RegistrationCloud>(
-        slam::PrepareRegistrationCloud(**cloud, config_.registration));
+    const slam::PointCloudPtr kept = peer_clouds_[match] = *cloud;
     const auto waiting = std::move(waiting_[match]);
     waiting_.erase(match);
     for (const auto& c : waiting) {
@@ -228,8 +225,7 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
     return true;
 }
 
-void LoopMatcherActor::Verify(const slam::LoopCandidate& c,
-                              const slam::RegistrationCloud& match_cloud) {
+void LoopMatcherActor::Verify(const slam::LoopCandidate& c, const slam::PointCloud& match_cloud) {
     const slam::PoseId query = c.query, match = c.match;
     const auto result = slam::RegisterScans(*own_clouds_.at(query.index), match_cloud,
                                             slam::YawGuess(c.yaw_rad), config_.registration);

@@ -84,7 +84,7 @@ class LoopMatcherActor final : public NodeActor {
     bool OnCloudRequest(const transport::Message& m);
     bool OnCloudReply(const transport::Message& m);
     void Consider(const slam::LoopCandidate& candidate);
-    void Verify(const slam::LoopCandidate& candidate, const slam::RegistrationCloud& match_cloud);
+    void Verify(const slam::LoopCandidate& candidate, const slam::PointCloud& match_cloud);
     void RequestCloud(std::uint64_t id, const Pending& p);
     slam::PointCloudPtr ReplyCloud(int index);
     void OnOwnKeyframe(const slam::Keyframe& keyframe);
@@ -98,13 +98,10 @@ class LoopMatcherActor final : public NodeActor {
     LoopMatcherConfig config_;
     transport::Endpoint* loops_out_ = nullptr;
     transport::Endpoint* clouds_server_ = nullptr;
-    std::map<int, transport::Endpoint*> cloud_clients_;  ///< lower robot -> dealer
-    /// Own keyframe -> its cloud downsampled for registration (the full cloud is not kept: its
-    /// fine cloud is what a requester gets, unless downsample_replies is off).
-    std::map<int, std::shared_ptr<const slam::RegistrationCloud>> own_clouds_;
-    std::map<int, slam::PointCloudPtr> full_clouds_;  ///< own keyframe -> cloud (replies in full)
-    /// Fetched, kept (gate: once), prepared for registration.
-    std::map<slam::PoseId, std::shared_ptr<const slam::RegistrationCloud>> peer_clouds_;
+    std::map<int, transport::Endpoint*> cloud_clients_;        ///< lower robot -> dealer
+    std::map<int, slam::PointCloudPtr> own_clouds_;            ///< own keyframe -> cloud
+    std::map<int, slam::PointCloudPtr> reply_clouds_;          ///< own keyframe -> as sent
+    std::map<slam::PoseId, slam::PointCloudPtr> peer_clouds_;  ///< fetched, kept (gate: once)
     std::map<slam::PoseId, std::vector<slam::LoopCandidate>> waiting_;  ///< on a fetch
     slam::CloudRequestGate gate_;
     std::map<slam::PoseId, slam::ScanContext> descriptors_;  ///< own and lower robots'

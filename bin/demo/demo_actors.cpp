@@ -81,28 +81,26 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
 
 }  // namespace
 
-ActorMissionResult RunThroughActors(std::vector<std::vector<slam::Keyframe>>* robots,
+ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
                                     double timeout_s, double voxel_m, bool distributed_certificate,
                                     const ActorProgress& progress) {
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
     std::vector<int> ids;
     size_t total = 0;
-    for (size_t r = 0; r < robots->size(); ++r) {
+    for (size_t r = 0; r < robots.size(); ++r) {
         ids.push_back(static_cast<int>(r));
-        total += (*robots)[r].size();
+        total += robots[r].size();
     }
     const actors::RobotNodeConfig config = DemoConfig(voxel_m, distributed_certificate);
     zmq::context_t context;
     std::vector<std::unique_ptr<actors::RobotNode>> nodes;
     for (int r : ids) {
         auto next = std::make_shared<size_t>(0);
-        auto* keyframes = &(*robots)[static_cast<size_t>(r)];
+        const auto* keyframes = &robots[static_cast<size_t>(r)];
         actors::KeyframeSource source = [keyframes, next]() -> std::optional<slam::Keyframe> {
             if (*next >= keyframes->size()) return std::nullopt;
-            slam::Keyframe out = (*keyframes)[*next];
-            (*keyframes)[(*next)++].cloud.reset();  // the actors own it from here
-            return out;
+            return (*keyframes)[(*next)++];
         };
         nodes.push_back(std::make_unique<actors::RobotNode>(context, actors::InprocWiring(r, ids),
                                                             std::move(source), config));

@@ -53,11 +53,10 @@ struct ActorMissionResult {
 /// Progress of the run: stage and fraction done in [0, 1].
 using ActorProgress = std::function<void(const std::string& stage, double fraction)>;
 
-/// Runs (*robots)[k] (keyframes with clouds) through one RobotNode per robot over inproc until
+/// Runs robots[k] (keyframes with clouds) through one RobotNode per robot over inproc until
 /// every node is done or `timeout_s` passes; every keyframe queries the loop matcher. The TSDF
-/// mappers run with voxels of `voxel_m` (0: no mapper, no mesh). Each keyframe's cloud is handed
-/// to the actors and not kept in `robots` (the actors keep what they need of it).
-ActorMissionResult RunThroughActors(std::vector<std::vector<slam::Keyframe>>* robots,
+/// mappers run with voxels of `voxel_m` (0: no mapper, no mesh).
+ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
                                     double timeout_s, double voxel_m,
                                     bool distributed_certificate = true,
                                     const ActorProgress& progress = {});

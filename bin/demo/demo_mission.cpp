@@ -260,15 +260,15 @@ std::string MissionText(const slam::SimScenario& scenario, const DemoOptions& op
 }
 
 /// The certified row from the actor graph, the baselines on the graph it solved.
-certify::MissionResult ActorPath(const DemoOptions& options, SimulatedTeam* team,
+certify::MissionResult ActorPath(const DemoOptions& options, const SimulatedTeam& team,
                                  const certify::MissionConfig& config, ProgressBar* bar,
                                  ActorMissionResult* run, DemoReport* report) {
     *run = RunThroughActors(
-        &team->robots, options.actors_timeout_s, options.voxel_m, options.distributed_certificate,
+        team.robots, options.actors_timeout_s, options.voxel_m, options.distributed_certificate,
         [&](const std::string& stage, double f) { bar->Update(stage, 0.25 + 0.5 * f); });
     report->timings["actor_graph"] = run->seconds;
     certify::MissionResult mission = BaselinesOnActorGraph(
-        team->robots, *run, config,
+        team.robots, *run, config,
         [&](const std::string& stage, double f) { bar->Update(stage, 0.75 + 0.15 * f); });
     FillFromActors(*run, &mission, report);
     return mission;
@@ -281,7 +281,7 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     DemoReport report;
     ProgressBar bar(!options.quiet);
     const slam::SimScenario scenario = Scenario(options);
-    SimulatedTeam team = Simulate(scenario, options, &bar);  // the actors take the clouds
+    const SimulatedTeam team = Simulate(scenario, options, &bar);
     report.scenario = scenario.name;
     report.mission = MissionText(scenario, options);
     report.timings["simulation"] = Since(start);
@@ -295,7 +295,7 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     certify::MissionResult mission;
     if (actors) {
         run.emplace();
-        mission = ActorPath(options, &team, config, &bar, &*run, &report);
+        mission = ActorPath(options, team, config, &bar, &*run, &report);
     } else {
         mission = certify::RunMission(
             team.robots, team.truth, config,

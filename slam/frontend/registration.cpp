@@ -94,30 +94,14 @@ Eigen::Isometry3d YawGuess(double yaw_rad) {
     return T;
 }
 
-RegistrationCloud PrepareRegistrationCloud(const PointCloud& cloud,
-                                           const RegistrationConfig& config) {
-    config.Validate();
-    RegistrationCloud out;
-    out.fine = VoxelDownsample(cloud, config.voxel_m);
-    if (config.coarse_voxel_m > 0) out.coarse = VoxelDownsample(cloud, config.coarse_voxel_m);
-    return out;
-}
-
 RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& target,
-                                 const Eigen::Isometry3d& T_target_source_guess,
-                                 const RegistrationConfig& config) {
-    return RegisterScans(PrepareRegistrationCloud(source, config),
-                         PrepareRegistrationCloud(target, config), T_target_source_guess, config);
-}
-
-RegistrationResult RegisterScans(const RegistrationCloud& source, const RegistrationCloud& target,
                                  const Eigen::Isometry3d& T_target_source_guess,
                                  const RegistrationConfig& config) {
     config.Validate();
     RegistrationResult result;
     result.T_target_source = T_target_source_guess;
-    const PointCloud& src = source.fine;
-    const PointCloud& tgt = target.fine;
+    const PointCloud src = VoxelDownsample(source, config.voxel_m);
+    const PointCloud tgt = VoxelDownsample(target, config.voxel_m);
     result.num_source_points = static_cast<int>(src.size());
     result.num_target_points = static_cast<int>(tgt.size());
     if (result.num_source_points < config.min_points ||
@@ -127,8 +111,8 @@ RegistrationResult RegisterScans(const RegistrationCloud& source, const Registra
     }
     Eigen::Matrix4f T = T_target_source_guess.matrix().cast<float>();
     if (config.coarse_voxel_m > 0) {  // coarse stage: wide gate absorbs SC's metres of offset
-        const PointCloud& src_c = source.coarse;
-        const PointCloud& tgt_c = target.coarse;
+        const PointCloud src_c = VoxelDownsample(source, config.coarse_voxel_m);
+        const PointCloud tgt_c = VoxelDownsample(target, config.coarse_voxel_m);
         if (static_cast<int>(std::min(src_c.size(), tgt_c.size())) >= config.min_points) {
             const StageResult coarse =
                 RunGicp(src_c, tgt_c, T, config.coarse_max_correspondence_m, config);

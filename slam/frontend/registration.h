@@ -71,19 +71,4 @@ RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& tar
                                  const Eigen::Isometry3d& T_target_source_guess,
                                  const RegistrationConfig& config);
 
-/// A scan as RegisterScans uses it: downsampled once at the fine and at the coarse voxel. A caller
-/// that registers a scan many times keeps this instead of the full cloud (a fraction of its
-/// points) and gets the same result.
-struct RegistrationCloud {
-    PointCloud fine;    ///< at RegistrationConfig::voxel_m
-    PointCloud coarse;  ///< at coarse_voxel_m; empty without a coarse stage
-};
-/// `cloud` downsampled as RegisterScans does it.
-RegistrationCloud PrepareRegistrationCloud(const PointCloud& cloud,
-                                           const RegistrationConfig& config);
-/// RegisterScans on scans already prepared with the same `config`.
-RegistrationResult RegisterScans(const RegistrationCloud& source, const RegistrationCloud& target,
-                                 const Eigen::Isometry3d& T_target_source_guess,
-                                 const RegistrationConfig& config);
-
 }  // namespace certislam::slam

@@ -101,26 +101,6 @@ TEST(Registration, HdlPairWithinFiveCentimetresAndOneDegree) {
     EXPECT_LE(r.tau, 1.0 / (config.min_translation_sigma_m * config.min_translation_sigma_m));
 }
 
-// A caller that keeps prepared clouds (the loop matcher) gets exactly the full clouds' result
-// while keeping a fraction of their points.
-TEST(Registration, PreparedCloudsGiveTheSameResultWithFewerPoints) {
-    const PointCloud target = Load("hdl_pair_fast_gicp/251370668.pcd");
-    const PointCloud source = Load("hdl_pair_fast_gicp/251371071.pcd");
-    RegistrationConfig config;
-    config.voxel_m = 0.4;
-    const RegistrationCloud src = PrepareRegistrationCloud(source, config);
-    const RegistrationCloud tgt = PrepareRegistrationCloud(target, config);
-    const RegistrationResult full =
-        RegisterScans(source, target, Eigen::Isometry3d::Identity(), config);
-    const RegistrationResult prepared =
-        RegisterScans(src, tgt, Eigen::Isometry3d::Identity(), config);
-    EXPECT_EQ(prepared.status, full.status);
-    EXPECT_EQ(prepared.T_target_source.matrix(), full.T_target_source.matrix());
-    EXPECT_EQ(prepared.kappa, full.kappa);
-    EXPECT_EQ(prepared.tau, full.tau);
-    EXPECT_LT(src.fine.size() + src.coarse.size(), source.size() / 2);
-}
-
 // KITTI 00 frames 94 -> 95 (0.47 m apart): GT relative pose from the KITTI poses and the
 // velodyne-to-camera calibration, T_world_velo = T_world_cam0 * Tr.
 TEST(Registration, KittiConsecutiveScansMatchGroundTruth) {

@@ -40,7 +40,6 @@ namespace {
 
 constexpr std::size_t kHistory = 16;               ///< distinct bundles kept per robot for rounds
 constexpr std::size_t kMaxEarlyMessages = 100000;  ///< buffered messages of rounds not begun
-constexpr int kBlock = 4;                          ///< columns per pose (d + 1, d = 3)
 
 }  // namespace
 
@@ -105,7 +104,7 @@ void CertifierActor::SubscribeBundles() {
     };
     On(v1::SolverStatus::descriptor()->full_name(), [this, count](const transport::Message& m) {
         const auto status = transport::Unpack<v1::SolverStatus>(m);
-        if (!status) return false;
+        if (!status || !IsValidStatus(*status)) return false;
         count(m, status->header().robot_id());
         pending_[int(status->header().robot_id())] = Bundle{*status, {}, {}, 0};
         return true;
@@ -258,7 +257,7 @@ void CertifierActor::SubscribeRounds() {
     }
     On(v1::CertificateRound::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto round = transport::Unpack<v1::CertificateRound>(m);
-        if (!round) return false;
+        if (!round || !IsValidRound(*round)) return false;
         OnRound(*round);
         return true;
     });
@@ -348,7 +347,7 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
         *v.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
         v.set_round(round_);
         v.set_step(static_cast<std::uint32_t>(step));
-        v.set_block_size(kBlock);
+        v.set_block_size(kCertificateBlock);
         for (const auto& id : ids) *v.add_pose_ids() = ToProto(id);
         v.mutable_values()->Add(values.data(), values.data() + values.size());
         Send(*out_, transport::Pack(v), true);
@@ -375,13 +374,15 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
 
 void CertifierActor::Deliver(const transport::Message& m) {
     std::uint64_t round = 0;
-    const auto vector =
+    const auto vector_proto =
         m.Is<v1::CertificateVector>() ? transport::Unpack<v1::CertificateVector>(m) : std::nullopt;
-    const auto reduction = m.Is<v1::CertificateReduction>()
-                               ? transport::Unpack<v1::CertificateReduction>(m)
-                               : std::nullopt;
-    if (vector) round = vector->round();
-    if (reduction) round = reduction->round();
+    const auto reduction_proto = m.Is<v1::CertificateReduction>()
+                                     ? transport::Unpack<v1::CertificateReduction>(m)
+                                     : std::nullopt;
+    const auto vector = vector_proto ? FromProto(*vector_proto) : std::nullopt;
+    const auto reduction = reduction_proto ? FromProto(*reduction_proto) : std::nullopt;
+    if (vector) round = vector->round;
+    if (reduction) round = reduction->round;
     if (round == 0) return;
     if (round != round_ || !lanczos_) {
         std::size_t buffered = 0;
@@ -393,19 +394,10 @@ void CertifierActor::Deliver(const transport::Message& m) {
     round_progress_ = std::chrono::steady_clock::now();
     round_heard_ = true;
     if (vector) {
-        std::vector<slam::PoseId> ids;
-        for (const auto& id : vector->pose_ids()) {
-            const auto pose = FromProto(id);
-            if (!pose) return;
-            ids.push_back(*pose);
-        }
-        const Eigen::VectorXd values = Eigen::Map<const Eigen::VectorXd>(
-            vector->values().data(), static_cast<Eigen::Index>(vector->values_size()));
-        lanczos_->OnVector(int(vector->header().robot_id()), int(vector->step()), ids, values);
+        lanczos_->OnVector(vector->robot, vector->step, vector->ids, vector->values);
     } else {
-        lanczos_->OnReduction(int(reduction->header().robot_id()), int(reduction->step()),
-                              int(reduction->stage()),
-                              {reduction->values().begin(), reduction->values().end()});
+        lanczos_->OnReduction(reduction->robot, reduction->step, reduction->stage,
+                              reduction->values);
     }
     RoundFinished();
 }

@@ -18,6 +18,7 @@
 #include "certislam/v1/certificate.pb.h"
 #include "certislam/v1/keyframe.pb.h"
 #include "certislam/v1/loop_closure.pb.h"
+#include "certislam/v1/map.pb.h"
 #include "certislam/v1/rbcd.pb.h"
 #include "certislam/v1/scan_context.pb.h"
 #include "slam/core/keyframe.h"
@@ -100,6 +101,53 @@ v1::TrajectoryUpdate TrajectoryToProto(int robot, const std::vector<Eigen::Isome
 /// Pose id -> pose of a TrajectoryUpdate; nullopt when the lists disagree or a pose is malformed.
 std::optional<std::map<slam::PoseId, Eigen::Isometry3d>> TrajectoryFromProto(
     const v1::TrajectoryUpdate& update);
+
+/// A solver status a peer may send: robot id and staircase level fit an int, rank_r <= 64, cost and
+/// gradient norm finite (the synchronous rounds sum them: one NaN would stall the team).
+bool IsValidStatus(const v1::SolverStatus& status);
+
+/// Values per pose of a distributed certificate round's vectors (d + 1 columns, d = 3).
+inline constexpr std::uint32_t kCertificateBlock = 4;
+/// A round's opening a certifier may act on: round > 0, 3 <= rank_r <= 64, robot ids that fit an
+/// int, each robot named once.
+bool IsValidRound(const v1::CertificateRound& round);
+/// One robot's rows of a round's Lanczos vector (CertificateVector).
+struct RoundVector {
+    std::uint64_t round = 0;  ///< > 0
+    int robot = 0;
+    int step = 0;                   ///< Lanczos step
+    std::vector<slam::PoseId> ids;  ///< the sender's public poses
+    Eigen::VectorXd values;         ///< kCertificateBlock finite values per id
+};
+/// A CertificateVector as a RoundVector; nullopt unless round > 0, block_size = kCertificateBlock,
+/// the value count matches the ids, every value is finite and the ids and step fit an int.
+std::optional<RoundVector> FromProto(const v1::CertificateVector& vector);
+/// One robot's partial sums of a round (CertificateReduction).
+struct RoundReduction {
+    std::uint64_t round = 0;  ///< > 0
+    int robot = 0;
+    int step = 0;                ///< Lanczos step (setup: 0)
+    int stage = 0;               ///< which sum within the step
+    std::vector<double> values;  ///< finite
+};
+/// A CertificateReduction as a RoundReduction; nullopt unless round > 0, every value is finite
+/// and robot, step and stage fit an int.
+std::optional<RoundReduction> FromProto(const v1::CertificateReduction& reduction);
+
+/// Largest uncompressed submap a peer's MapUpdate may claim.
+inline constexpr std::uint64_t kMaxSubmapBytes = 1ull << 30;
+/// A peer's submap update as the mapper uses it.
+struct MapBody {
+    int sender = 0;       ///< the robot whose submap it is (the header's robot id)
+    int submap = 0;       ///< the submap's index among the sender's
+    slam::PoseId anchor;  ///< the sender's keyframe the submap hangs from
+    Eigen::Isometry3d T_world_anchor = Eigen::Isometry3d::Identity();
+    std::optional<std::string> bytes;  ///< the submap's serialised TSDF; nullopt: moved only
+};
+/// A MapUpdate message as a MapBody; nullopt unless the anchor is the sender's and a rigid pose,
+/// ids fit an int, and a payload (kind TSDF blocks) is its frame's whole length and decompresses
+/// (none or zstd) to its declared size, at most kMaxSubmapBytes.
+std::optional<MapBody> DecodeMapUpdate(const transport::Message& message);
 
 /// A certificate's verdict and quantities as a report.
 v1::CertificateReport ToProto(const certify::CertificateResult& result, std::uint32_t rank);

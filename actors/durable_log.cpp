@@ -104,6 +104,7 @@ DurableLogRead ReadDurableLog(const std::string& path) {
         return result;
     }
     result.good_bytes = static_cast<std::uint64_t>(in.tellg());
+    const std::uint64_t file_bytes = std::filesystem::file_size(path);
     for (std::uint32_t count = 0; ReadValue(in, &count);) {
         if (count == 0 || count > kMaxFrames) {
             result.torn_tail = true;  // not a record header: nothing after it can be trusted
@@ -113,7 +114,9 @@ DurableLogRead ReadDurableLog(const std::string& path) {
         bool complete = true;
         for (std::uint32_t k = 0; k < count && complete; ++k) {
             std::uint64_t size = 0;
-            complete = ReadValue(in, &size) && size <= kMaxFrameBytes;
+            // A size beyond the bytes left is a torn or forged record: refused before allocating.
+            complete = ReadValue(in, &size) && size <= kMaxFrameBytes &&
+                       size <= file_bytes - static_cast<std::uint64_t>(in.tellg());
             if (!complete) break;
             zmq::message_t frame(static_cast<std::size_t>(size));
             complete = static_cast<bool>(
@@ -133,7 +136,7 @@ DurableLogRead ReadDurableLog(const std::string& path) {
         result.good_bytes = static_cast<std::uint64_t>(in.tellg());
     }
     // A few bytes of a record header alone are a torn tail too.
-    if (std::filesystem::file_size(path) > result.good_bytes) result.torn_tail = true;
+    if (file_bytes > result.good_bytes) result.torn_tail = true;
     return result;
 }
 

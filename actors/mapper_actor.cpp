@@ -9,7 +9,6 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
-#include <string_view>
 
 #include "actors/convert.h"
 #include "actors/streams.h"
@@ -23,7 +22,6 @@ namespace {
 constexpr double kMovedTranslation_m = 1e-4;  // anchor changes below these are not sent
 constexpr double kMovedRotation_rad = 1e-5;
 constexpr auto kMeshWait = std::chrono::seconds(120);
-constexpr std::uint64_t kMaxSubmapBytes = 1ull << 30;  // a peer's claimed size beyond: dropped
 
 /// The zstd frame of `payload` at `level`.
 std::string Compress(const std::string& payload, int level) {
@@ -32,20 +30,6 @@ std::string Compress(const std::string& payload, int level) {
         ZSTD_compress(out.data(), out.size(), payload.data(), payload.size(), level);
     CERTISLAM_CHECK(!ZSTD_isError(n));
     out.resize(n);
-    return out;
-}
-
-/// The payload of a MapUpdate's frame; nullopt when the compression is unknown or the frame lies.
-std::optional<std::string> Payload(const v1::MapUpdate& update, std::string_view frame) {
-    if (update.compression() == v1::MAP_COMPRESSION_NONE) return std::string(frame);
-    if (update.compression() != v1::MAP_COMPRESSION_ZSTD) return std::nullopt;
-    const std::uint64_t size = update.uncompressed_byte_length();
-    if (size > kMaxSubmapBytes || ZSTD_getFrameContentSize(frame.data(), frame.size()) != size) {
-        return std::nullopt;
-    }
-    std::string out(size, '\0');
-    const std::size_t n = ZSTD_decompress(out.data(), out.size(), frame.data(), frame.size());
-    if (ZSTD_isError(n) || n != size) return std::nullopt;
     return out;
 }
 
@@ -179,35 +163,22 @@ bool MapperActor::OnShutdown(const transport::Message& m) {
 }
 
 bool MapperActor::OnMapUpdate(const transport::Message& m) {
-    const auto proto = transport::Unpack<v1::MapUpdate>(m);
-    if (!proto) return false;
-    const int sender = static_cast<int>(proto->header().robot_id());
-    const auto anchor = FromProto(proto->anchor_pose_id());
-    const auto T = FromProto(proto->t_world_anchor());
-    if (sender == RobotId() || !anchor || !T || anchor->robot != sender) return false;
-    const slam::SubmapId id{sender, static_cast<int>(proto->submap_id())};
-    if (proto->byte_length() == 0) {         // moved only
+    const auto body = DecodeMapUpdate(m);
+    if (!body || body->sender == RobotId()) return false;
+    const slam::SubmapId id{body->sender, body->submap};
+    if (!body->bytes) {                      // moved only
         if (!peers_.count(id)) return true;  // its bytes have not arrived yet: they will
         map_.Reanchor([&](const slam::PoseId& p) -> std::optional<Eigen::Isometry3d> {
-            return p == *anchor ? std::optional(*T) : std::nullopt;
+            return p == body->anchor ? std::optional(body->T_world_anchor) : std::nullopt;
         });
         std::lock_guard lock(stats_mutex_);
         ++stats_.peer_moves;
         return true;
     }
-    const auto index = static_cast<size_t>(proto->frame_index());
-    if (proto->kind() != v1::MAP_PAYLOAD_KIND_TSDF_BLOCKS || index >= m.frames.size() ||
-        m.frames[index].size() != proto->byte_length()) {
-        return false;
-    }
-    const auto& frame = m.frames[index];
-    const auto payload = Payload(
-        *proto, std::string_view(reinterpret_cast<const char*>(frame.data()), frame.size()));
-    if (!payload) return false;
     std::string error;
-    auto submap = slam::DeserializeSubmap(*payload, &error);
-    if (!submap || !(submap->id == id) || !(submap->anchor == *anchor)) return false;
-    submap->T_world_submap = *T;
+    auto submap = slam::DeserializeSubmap(*body->bytes, &error);
+    if (!submap || !(submap->id == id) || !(submap->anchor == body->anchor)) return false;
+    submap->T_world_submap = body->T_world_anchor;
     map_.AddSubmap(std::move(*submap));
     peers_.insert(id);
     UpdateStats();

@@ -82,7 +82,7 @@ void SolverActor::Subscribe() {
        [this](const transport::Message& m) { return OnPublicPoses(m); });
     On(v1::SolverStatus::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto status = transport::Unpack<v1::SolverStatus>(m);
-        if (!status) return false;
+        if (!status || !IsValidStatus(*status)) return false;
         if (status->team_round() > 0) {
             if (config_.synchronous) OnRoundSums(*status);
             return true;

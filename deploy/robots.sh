@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Starts N robots of a team configuration as separate `certislam robot` processes, each in its
-# own network namespace joined by veth pairs on a bridge (10.77.0.0/24), talking tcp with CURVE
-# keys made by `certislam keygen`; falls back to plain loopback where namespaces are not allowed
-# (not root, no `ip netns`) or when CERTISLAM_NETNS=0. Waits for all and reports their exit codes.
+# own network namespace joined by veth pairs on a bridge (a free 10.77.X.0/24, or
+# CERTISLAM_SUBNET=A.B.C), talking tcp with CURVE keys made by `certislam keygen`; falls back to
+# plain loopback where namespaces are not allowed (not root, no `ip netns`) or when
+# CERTISLAM_NETNS=0. Waits for all and reports their exit codes.
 # Usage: deploy/robots.sh N CONFIG [OUT_DIR]
 #   CONFIG: a team configuration (source, solver, matcher); its "robots" (0..N-1) and
 #   "network" parts are written here. Results: OUT_DIR/robot<k>.tum, OUT_DIR/robot<k>.log,

@@ -1,8 +1,10 @@
 # shellcheck shell=bash disable=SC2034  # team_* variables are read by the scripts that source this
 # Shell functions shared by deploy/robots.sh and deploy/faults.sh (sourced, not run): a team of N
 # `certislam robot` processes, each in its own network namespace joined by veth pairs on a bridge
-# (10.77.0.0/24), talking tcp with CURVE keys made by `certislam keygen`; plain loopback where
-# namespaces are not allowed (not root, no `ip netns`) or when CERTISLAM_NETNS=0.
+# (a 10.77.X.0/24 no interface of the host uses yet, or CERTISLAM_SUBNET=A.B.C for A.B.C.0/24, so
+# two campaigns on one host do not clash), talking tcp with CURVE keys made by `certislam keygen`;
+# plain loopback where namespaces are not allowed (not root, no `ip netns`) or when
+# CERTISLAM_NETNS=0.
 # Call team_init N first, team_net_up after it, and team_net_down on exit (trap).
 
 # team_init N: the team's size, the binary, the base port and whether namespaces are usable.
@@ -24,13 +26,39 @@ team_init() {
         team_netns=1
     fi
     team_tag="cs$$"
+    if [ "$team_netns" = 1 ]; then team_pick_subnet || return 1; fi
+}
+
+# team_pick_subnet: team_subnet (A.B.C of A.B.C.0/24) from CERTISLAM_SUBNET, else the first
+# 10.77.X with no address on the host, X starting from this shell's pid (campaigns started at
+# once start apart).
+team_pick_subnet() {
+    if [ -n "${CERTISLAM_SUBNET:-}" ]; then
+        [[ "$CERTISLAM_SUBNET" =~ ^[0-9]{1,3}\.[0-9]{1,3}\.[0-9]{1,3}$ ]] || {
+            echo "CERTISLAM_SUBNET=$CERTISLAM_SUBNET: want A.B.C (the team uses A.B.C.0/24)" >&2
+            return 1
+        }
+        team_subnet="$CERTISLAM_SUBNET"
+        return 0
+    fi
+    local used i x
+    used="$(ip -o -4 addr show 2>/dev/null)"
+    for ((i = 0; i < 250; i++)); do
+        x=$((($$ + i) % 250 + 1))
+        if ! grep -q " 10\.77\.$x\." <<<"$used"; then
+            team_subnet="10.77.$x"
+            return 0
+        fi
+    done
+    echo "team: every 10.77.X.0/24 is in use on this host (set CERTISLAM_SUBNET)" >&2
+    return 1
 }
 
 # team_host K: the address robot K binds and its peers connect to.
-team_host() { if [ "$team_netns" = 1 ]; then echo "10.77.0.$((10 + $1))"; else echo 127.0.0.1; fi; }
+team_host() { if [ "$team_netns" = 1 ]; then echo "$team_subnet.$((10 + $1))"; else echo 127.0.0.1; fi; }
 
 # team_outside_host: an address outside every robot (the bridge, or loopback), for intruders.
-team_outside_host() { if [ "$team_netns" = 1 ]; then echo 10.77.0.1; else echo 127.0.0.1; fi; }
+team_outside_host() { if [ "$team_netns" = 1 ]; then echo "$team_subnet.1"; else echo 127.0.0.1; fi; }
 
 # team_port K: robot K's base port (its edges are on base + 1 .. base + 7).
 team_port() { echo $((team_base_port + 10 * $1)); }
@@ -42,7 +70,7 @@ team_net_up() {
         return 0
     fi
     ip link add "${team_tag}br" type bridge
-    ip addr add 10.77.0.1/24 dev "${team_tag}br"
+    ip addr add "$team_subnet.1/24" dev "${team_tag}br"
     ip link set "${team_tag}br" up
     local k ns
     for ((k = 0; k < team_n; k++)); do
@@ -54,7 +82,8 @@ team_net_up() {
         ip -n "$ns" link set eth0 up
         ip -n "$ns" link set lo up
     done
-    echo "team: $team_n robots in network namespaces $team_tag-r0.. on bridge ${team_tag}br"
+    echo "team: $team_n robots in network namespaces $team_tag-r0.. on bridge ${team_tag}br" \
+        "($team_subnet.0/24)"
 }
 
 # team_net_down: removes what team_net_up made.

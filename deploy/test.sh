@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Quick start, command 2: set up, build with warnings as errors, check formatting and
 # clang-tidy, run the whole test suite, then fuzz the untrusted decoders for a bounded time each.
-# Env: FUZZ_SECONDS (default 60 per target; 0 skips), TIDY (default 1; 0 skips), BUILD_DIR.
+# Env: FUZZ_SECONDS (default 40 per target; 0 skips), TIDY (default 1; 0 skips), BUILD_DIR.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${BUILD_DIR:-$root/build}"
@@ -39,8 +39,8 @@ python3 "$root/deploy/check_layers.py" "$build"
 echo "== tests"
 (cd "$build" && ctest --output-on-failure -j "${JOBS:-2}" --timeout 900)
 
-if [ "${FUZZ_SECONDS:-60}" != "0" ] && [ -x "$root/deploy/fuzz.sh" ]; then
+if [ "${FUZZ_SECONDS:-40}" != "0" ] && [ -x "$root/deploy/fuzz.sh" ]; then
   echo "== fuzz"
-  "$root/deploy/fuzz.sh" "${FUZZ_SECONDS:-60}"
+  "$root/deploy/fuzz.sh" "${FUZZ_SECONDS:-40}"
 fi
 echo "== all checks passed"

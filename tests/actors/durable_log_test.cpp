@@ -4,9 +4,11 @@
 #include "actors/durable_log.h"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "actors/convert.h"
@@ -87,6 +89,37 @@ TEST(DurableLog, ATornTailIsCutOffSoLaterAppendsAreReadBack) {
     ASSERT_EQ(read.messages.size(), 4u);
     EXPECT_EQ(DecodeKeyframe(read.messages[3])->index, 3);
     EXPECT_EQ(read.identity, "seed: 1\n");
+    std::filesystem::remove(path);
+}
+
+// A record claiming a 3 GiB frame (below the per-frame cap) in a file of a few kilobytes is a torn
+// tail, found without allocating the claim: the read runs under an address-space limit of 1 GiB
+// more than the process maps, where allocating the claim throws std::bad_alloc.
+TEST(DurableLog, AFrameLongerThanTheFileIsATornTailNotAnAllocation) {
+    const std::string path = TempPath("forged_size");
+    std::filesystem::remove(path);
+    AppendKeyframes(path, "seed: 1\n", 0, 1);
+    const auto good_bytes = std::filesystem::file_size(path);
+    const std::uint32_t count = 1;
+    const std::uint64_t claimed = 3ull << 30;
+    std::ofstream out(path, std::ios::binary | std::ios::app);
+    out.write(reinterpret_cast<const char*>(&count), sizeof count);
+    out.write(reinterpret_cast<const char*>(&claimed), sizeof claimed);
+    out.write("forged", 6);
+    out.close();
+    long pages = 0;
+    std::ifstream("/proc/self/statm") >> pages;
+    rlimit old{};
+    ASSERT_EQ(getrlimit(RLIMIT_AS, &old), 0);
+    rlimit limit = old;
+    limit.rlim_cur = static_cast<rlim_t>(pages) * sysconf(_SC_PAGESIZE) + (1ull << 30);
+    ASSERT_EQ(setrlimit(RLIMIT_AS, &limit), 0);
+    DurableLogRead read;
+    EXPECT_NO_THROW(read = ReadDurableLog(path));
+    ASSERT_EQ(setrlimit(RLIMIT_AS, &old), 0);
+    EXPECT_TRUE(read.torn_tail);
+    EXPECT_EQ(read.messages.size(), 2u);
+    EXPECT_EQ(read.good_bytes, good_bytes);
     std::filesystem::remove(path);
 }
 

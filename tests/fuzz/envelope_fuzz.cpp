@@ -2,7 +2,6 @@
 // message (fuzz_frames.h). The decoder must never crash, and what it accepts must round-trip.
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/message.h>
-#include <google/protobuf/stubs/logging.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -12,6 +11,7 @@
 #include <span>
 
 #include "tests/fuzz/fuzz_frames.h"
+#include "tests/fuzz/fuzz_quiet_protobuf.h"
 #include "tests/fuzz/fuzz_types.h"
 #include "transport/message.h"
 #include "transport/shm_segment.h"
@@ -80,12 +80,6 @@ void CheckRoundTrip(const transport::Message& message) {
 
 }  // namespace
 }  // namespace certislam::fuzz
-
-// Payload strings with invalid UTF-8 make protobuf log an error per input: keep the output legible.
-extern "C" int LLVMFuzzerInitialize(int* /*argc*/, char*** /*argv*/) {
-    google::protobuf::SetLogHandler(nullptr);
-    return 0;
-}
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     using namespace certislam;

@@ -1,13 +1,16 @@
 // The byte layout a fuzzer input uses to stand for one multipart ZeroMQ message, shared by the
-// envelope fuzzer and the program that writes its seed corpus.
+// fuzzers and the programs that write their seed corpora.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 #include <zmq.hpp>
+
+#include "transport/message.h"
 
 namespace certislam::fuzz {
 
@@ -42,6 +45,30 @@ inline std::string JoinFrames(const std::vector<zmq::message_t>& frames) {
         out.append(static_cast<const char*>(frame.data()), frame.size());
     }
     return out;
+}
+
+/// The frames of `message` as a peer's message body arrives: the payload, then its binary frames.
+inline std::vector<zmq::message_t> BodyFrames(const transport::Message& message) {
+    std::vector<zmq::message_t> frames;
+    frames.emplace_back(message.envelope.payload().data(), message.envelope.payload().size());
+    for (const auto& frame : message.frames) frames.emplace_back(frame.data(), frame.size());
+    return frames;
+}
+
+/// The inverse of BodyFrames: frame 0 parsed as T, the other frames attached; nullopt when frame 0
+/// is not a T.
+template <class T>
+std::optional<transport::Message> BodyMessage(const std::vector<zmq::message_t>& frames) {
+    T payload;
+    if (frames.empty() ||
+        !payload.ParseFromArray(frames[0].data(), static_cast<int>(frames[0].size()))) {
+        return std::nullopt;
+    }
+    std::vector<transport::SharedBuffer> binary;
+    for (std::size_t i = 1; i < frames.size(); ++i) {
+        binary.push_back(transport::SharedBuffer::Copy(frames[i].data(), frames[i].size()));
+    }
+    return transport::Pack(payload, std::move(binary));
 }
 
 }  // namespace certislam::fuzz

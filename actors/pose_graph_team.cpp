@@ -69,6 +69,7 @@ PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::vector<const PoseGraphNode*> views;
+    views.reserve(nodes.size());
     for (const auto& node : nodes) views.push_back(node.get());
     PoseGraphTeamResult out = SummariseNodes(views);
     out.done = done;

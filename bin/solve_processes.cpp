@@ -104,6 +104,7 @@ pid_t Spawn(const std::vector<std::string>& args, const std::string& out, const 
     const int log_fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
     if (out_fd < 0 || log_fd < 0) throw std::runtime_error(out + ": cannot create");
     std::vector<char*> argv;
+    argv.reserve(args.size() + 1);
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
     const pid_t parent = ::getpid();

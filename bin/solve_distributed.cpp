@@ -117,7 +117,7 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
                                               ? slam::ContiguousPartition(graph.n, o.robots)
                                               : slam::PartitionFromIds(graph);
         graphs = slam::SplitGraph(graph, partition);
-        if (o.transport != "inproc") return RunProcessSolve(graph, o);
+        if (o.transport != "inproc") return RunProcessSolve(graph, partition, o);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "certislam solve: error: %s: --distributed: %s\n", o.file.c_str(),
                      e.what());

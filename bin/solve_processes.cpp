@@ -102,7 +102,11 @@ nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partit
 pid_t Spawn(const std::vector<std::string>& args, const std::string& out, const std::string& log) {
     const int out_fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
     const int log_fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
-    if (out_fd < 0 || log_fd < 0) throw std::runtime_error(out + ": cannot create");
+    if (out_fd < 0 || log_fd < 0) {
+        if (out_fd >= 0) ::close(out_fd);
+        if (log_fd >= 0) ::close(log_fd);
+        throw std::runtime_error((out_fd < 0 ? out : log) + ": cannot create");
+    }
     std::vector<char*> argv;
     argv.reserve(args.size() + 1);
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -227,9 +231,8 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
     return r;
 }
 
-int RunProcessSolve(const slam::PoseGraph& graph, const DistributedSolveOptions& o) {
-    const slam::Partition partition =
-        o.robots > 0 ? slam::ContiguousPartition(graph.n, o.robots) : slam::PartitionFromIds(graph);
+int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partition,
+                    const DistributedSolveOptions& o) {
     char templ[] = "/tmp/certislam-solve-XXXXXX";  // 0700: the ipc sockets' guard
     if (::mkdtemp(templ) == nullptr) throw std::runtime_error("cannot create a folder in /tmp");
     const fs::path dir = templ;

@@ -8,6 +8,7 @@
 
 #include "actors/pose_graph_team.h"
 #include "bin/solve_distributed.h"
+#include "slam/core/partition.h"
 #include "slam/core/pose_graph.h"
 
 namespace certislam::bin {
@@ -17,8 +18,9 @@ namespace certislam::bin {
 /// std::runtime_error naming the robot and field when a report lacks one.
 actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>& reports);
 
-/// Runs the team as separate robot processes; prints the merged report (peak RSS per process
-/// measured by this parent); returns the command's exit code.
-int RunProcessSolve(const slam::PoseGraph& graph, const DistributedSolveOptions& options);
+/// Runs the team of `partition` as separate robot processes; prints the merged report (peak RSS
+/// per process measured by this parent); returns the command's exit code.
+int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partition,
+                    const DistributedSolveOptions& options);
 
 }  // namespace certislam::bin

@@ -76,6 +76,11 @@ nlohmann::json ToJson(const SolveOptions& o, const slam::PoseGraph& graph, int r
         {"robots", robots},
         {"robust", o.robust}};
     if (!r.reason.empty()) j["reason"] = r.reason;
+    if (o.robust) {
+        j["rejected_edges"] = r.rejected_edges;
+        j["gnc_iterations"] = r.gnc_iterations;
+        j["gnc_reinstated"] = r.gnc_reinstated;
+    }
     if (o.method == "lm") {
         j["local_search_cost"] = r.local_search_cost;
         j["polish_iterations"] = r.polish_iterations;

@@ -105,6 +105,10 @@ void SolveWithRbcd(const slam::PoseGraph& graph, const PoseGraphSolverConfig& co
         const slam::GncResult gnc = slam::SolveGnc(graph, partition, X0, config.gnc);
         result->solved_graph = gnc.kept;
         result->gnc_iterations = gnc.iterations;
+        result->gnc_reinstated = gnc.reinstated;
+        for (size_t e = 0; e < gnc.inlier.size(); ++e) {
+            if (!gnc.inlier[e]) result->rejected_edges.push_back(static_cast<int>(e));
+        }
         X0 = InlierStart(gnc, rank);
         if (progress)
             progress("gnc", rank, slam::LiftedCost(slam::ConnectionLaplacian(gnc.kept), X0), 0.0,

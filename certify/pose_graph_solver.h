@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "certify/certificate.h"
 #include "certify/local_search.h"
@@ -51,14 +52,16 @@ struct PoseGraphSolverResult {
     double relative_suboptimality_bound = 0.0;  ///< suboptimality_bound / cost
     CertificateResult certificate;              ///< the last certificate (of the lifted X)
     int rank = 0;                               ///< final relaxation rank
-    int iterations = 0;              ///< RBCD outer iterations (all rungs) or LM iterations
-    int escapes = 0;                 ///< saddle escapes of the staircase
-    double local_search_cost = 0.0;  ///< --method lm: f where LM stopped, before the polish
-    int polish_iterations = 0;       ///< --method lm: RBCD iterations of the polish
-    int edges_used = 0;              ///< edges of the solved graph (kept edges in robust mode)
-    int gnc_iterations = 0;          ///< GNC outer iterations (robust mode)
-    slam::PoseGraph solved_graph;    ///< the graph certified (the input, or its GNC inliers)
-    double seconds = 0.0;            ///< initialisation + solve + rounding + certificate
+    int iterations = 0;               ///< RBCD outer iterations (all rungs) or LM iterations
+    int escapes = 0;                  ///< saddle escapes of the staircase
+    double local_search_cost = 0.0;   ///< --method lm: f where LM stopped, before the polish
+    int polish_iterations = 0;        ///< --method lm: RBCD iterations of the polish
+    int edges_used = 0;               ///< edges of the solved graph (kept edges in robust mode)
+    int gnc_iterations = 0;           ///< GNC outer iterations (robust mode)
+    int gnc_reinstated = 0;           ///< rejected edges GNC's reinstatement pass put back
+    std::vector<int> rejected_edges;  ///< robust mode: 0-based input order of the rejected edges
+    slam::PoseGraph solved_graph;     ///< the graph certified (the input, or its GNC inliers)
+    double seconds = 0.0;             ///< initialisation + solve + rounding + certificate
 };
 
 /// Progress of a long solve: a stage name ("chordal", "gnc", "rbcd", "certify", "escape",

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -70,6 +71,51 @@ void Refine(const Partition& partition, double c2, const GncConfig& config, Pose
     }
 }
 
+/// The TLS inlier rule after a trial: every free edge of weight 1 has r^2 <= c^2 at X, and no
+/// known inlier (odometry) was bent beyond max(c^2, its r^2 before): an outlier must not be
+/// absorbed by distorting the edges GNC cannot reject.
+bool TrialConsistent(const PoseGraph& weighted, const std::vector<double>& before,
+                     const Eigen::MatrixXd& X, double c2) {
+    const std::vector<double> r2 = EdgeSquaredResiduals(weighted, X);
+    for (size_t e = 0; e < r2.size(); ++e) {
+        const auto& edge = weighted.edges[e];
+        if (edge.weight != 1.0) continue;
+        if (r2[e] > (edge.is_known_inlier ? std::max(c2, before[e]) : c2)) return false;
+    }
+    return true;
+}
+
+/// GNC started near odometry can reject genuine loops: their residual is large only while the
+/// kept graph lacks them (drift). Each rejected edge, smallest current residual first, is put
+/// back and the problem re-solved; it stays when TrialConsistent holds at the new solution (a
+/// gross outlier keeps a large residual however the poses move).
+void Reinstate(const Partition& partition, double c2, const GncConfig& config, PoseGraph* weighted,
+               RbcdResult* solved, GncResult* result) {
+    std::vector<bool> tried(weighted->edges.size(), false);
+    for (int failures = 0; failures < config.max_reinstatement_failures;) {
+        const std::vector<double> r2 = EdgeSquaredResiduals(*weighted, solved->X);
+        std::optional<size_t> next;
+        for (size_t e = 0; e < r2.size(); ++e) {
+            const auto& edge = weighted->edges[e];
+            if (edge.is_known_inlier || edge.weight != 0.0 || tried[e]) continue;
+            if (!next || r2[e] < r2[*next]) next = e;
+        }
+        if (!next) return;
+        tried[*next] = true;
+        weighted->edges[*next].weight = 1.0;
+        RbcdResult trial = SolveRbcd(*weighted, partition, solved->X, config.rbcd);
+        result->rbcd_iterations += trial.iterations;
+        if (TrialConsistent(*weighted, r2, trial.X, c2)) {
+            *solved = std::move(trial);
+            ++result->reinstated;
+            failures = 0;
+        } else {
+            weighted->edges[*next].weight = 0.0;
+            ++failures;
+        }
+    }
+}
+
 }  // namespace
 
 void GncConfig::Validate() const {
@@ -79,6 +125,8 @@ void GncConfig::Validate() const {
     Require(binary_tolerance > 0.0 && binary_tolerance < 0.5, "binary_tolerance", binary_tolerance,
             "in (0, 0.5)");
     Require(keep_weight > 0.0 && keep_weight <= 1.0, "keep_weight", keep_weight, "in (0, 1]");
+    Require(max_reinstatement_failures >= 0, "max_reinstatement_failures",
+            max_reinstatement_failures, ">= 0");
     rbcd.Validate();
 }
 
@@ -132,7 +180,10 @@ GncResult SolveGnc(const PoseGraph& graph, const Partition& partition, const Eig
         }
         mu *= config.mu_growth;
     }
-    if (mu > 0.0) Refine(partition, c2, config, &weighted, &solved, &result);
+    if (mu > 0.0) {
+        Refine(partition, c2, config, &weighted, &solved, &result);
+        Reinstate(partition, c2, config, &weighted, &solved, &result);
+    }
     result.final_mu = mu;
     result.X = solved.X;
     result.kept = graph;

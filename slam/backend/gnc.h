@@ -26,6 +26,10 @@ struct GncConfig {
     /// Treat odometry edges (consecutive keyframes of one robot) as known inliers: the kept graph
     /// then stays connected whatever the loop closures do.
     bool keep_odometry = true;
+    /// After GNC, rejected edges are put back one at a time (smallest residual first) and kept
+    /// when the re-solved problem has every free kept edge within the threshold; the search stops
+    /// after this many rejections in a row (0 = no reinstatement), >= 0.
+    int max_reinstatement_failures = 10;
     RbcdConfig rbcd;  ///< inner solver
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
@@ -46,6 +50,7 @@ struct GncResult {
     PoseGraph kept;               ///< the input graph restricted to inliers, weights reset to 1
     int iterations = 0;           ///< GNC outer iterations
     int rbcd_iterations = 0;      ///< RBCD outer iterations over all inner solves
+    int reinstated = 0;           ///< rejected edges put back by the reinstatement pass
     double final_mu = 0.0;        ///< mu when stopped
     double seconds = 0.0;         ///< wall time
 };
@@ -56,7 +61,8 @@ std::vector<double> EdgeSquaredResiduals(const PoseGraph& graph, const Eigen::Ma
 /// GNC-TLS from X0: known inliers (is_known_inlier, and odometry when config.keep_odometry) keep
 /// weight 1; the others start at 1 with
 /// mu_0 = c^2 / (2 max r^2 - c^2) and follow Yang et al.'s TLS weight update (Prop. 4) while mu
-/// grows; each weighted problem is solved by SolveRbcd warm-started from the last solution.
+/// grows; each weighted problem is solved by SolveRbcd warm-started from the last solution. A
+/// reinstatement pass then re-tests each rejected edge against the problem solved with it.
 GncResult SolveGnc(const PoseGraph& graph, const Partition& partition, const Eigen::MatrixXd& X0,
                    const GncConfig& config = {});
 

@@ -90,8 +90,9 @@ TEST(HostileInput, RobustSolveRejectsA500mLoopKeepsOdometryAndCertifies) {
     EXPECT_TRUE(j["certified"].get<bool>()) << r.out;
     EXPECT_EQ(j["verdict"].get<std::string>(), "certified") << r.out;
     EXPECT_EQ(j["edges"].get<int>(), 12);
-    EXPECT_LT(j["edges_used"].get<int>(), 12);  // the 500 m loop is rejected
-    EXPECT_GE(j["edges_used"].get<int>(), 8);   // odometry (8 edges) is kept
+    // Only the 500 m loop (the last edge) is rejected: odometry and the grid's 3 loops stay.
+    EXPECT_EQ(j["edges_used"].get<int>(), 11) << r.out;
+    EXPECT_EQ(j["rejected_edges"], nlohmann::json::array({11})) << r.out;
     EXPECT_GT(j["cost"].get<double>(), 0.0);
 }
 

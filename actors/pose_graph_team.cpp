@@ -62,18 +62,32 @@ PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs
     const auto start = std::chrono::steady_clock::now();
     for (auto& node : nodes) node->Start();
     bool done = false;
+    const auto since = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+    double converged = -1.0, certified = -1.0;
     while (!done && std::chrono::steady_clock::now() - start < timeout) {
         std::this_thread::sleep_for(kWatchPeriod);
         done = std::all_of(nodes.begin(), nodes.end(), [](const auto& n) { return n->Done(); });
+        if (converged < 0.0 && std::all_of(nodes.begin(), nodes.end(), [](const auto& n) {
+                return n->Snapshot().rounds_converged;
+            })) {
+            converged = since();
+        }
+        const auto report = nodes.front()->Snapshot().report;
+        if (certified < 0.0 && report && report->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED) {
+            certified = since();
+        }
     }
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds = since();
     std::vector<const PoseGraphNode*> views;
     views.reserve(nodes.size());
     for (const auto& node : nodes) views.push_back(node.get());
     PoseGraphTeamResult out = SummariseNodes(views);
     out.done = done;
     out.seconds = seconds;
+    out.seconds_to_converged = converged;
+    out.seconds_to_certified = certified;
     for (auto& node : nodes) node->Stop();
     return out;
 }

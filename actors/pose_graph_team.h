@@ -26,6 +26,10 @@ struct PoseGraphTeamResult {
     std::map<std::string, std::uint64_t> bytes_by_actor;  ///< summed over robots
     std::map<int, std::uint64_t> bytes_by_robot;          ///< summed over actors
     double seconds = 0.0;                                 ///< wall time, start to done
+    /// Wall time from the start until every robot's rounds had converged (or -1: never), and
+    /// until robot 0's solver first heard a certified report (or -1)
+    double seconds_to_converged = -1.0;
+    double seconds_to_certified = -1.0;
     int certificate_rounds = 0;       ///< distributed rounds robot 0's certifier finished
     std::uint64_t lanczos_steps = 0;  ///< S v products of those rounds (robot 0's count)
     int escapes = 0;                  ///< saddle escapes sent (anchor)

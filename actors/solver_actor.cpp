@@ -165,9 +165,11 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
         if (!config_.synchronous) return true;
         if (rounds_ && poses->staircase_level == rounds_level_) {
             rounds_->OnPoses(poses->ids.front().robot, poses->team_round - 1, *poses);
-        } else if (poses->staircase_level >= state_.StaircaseLevel()) {
-            early_poses_.push_back(*poses);
+            work_ = true;
+            AdvanceRounds();
+            return true;
         }
+        if (poses->staircase_level >= state_.StaircaseLevel()) early_poses_.push_back(*poses);
         work_ = true;
         return true;
     }

@@ -99,6 +99,7 @@ class SolverActor final : public NodeActor {
     void Tick();
     bool IsFinal() const;
     void SyncTick();
+    void AdvanceRounds();
     bool SyncAction(const certify::RoundAction& a);
     void SendRoundPoses(std::uint64_t round);
     void SendRoundSums(std::uint64_t round, double cost, double grad_norm);

@@ -46,6 +46,7 @@ void SolverActor::OnRoundSums(const v1::SolverStatus& status) {
     rounds_->OnSums(int(status.header().robot_id()), status.team_round() - 1, status.cost(),
                     status.gradient_norm());
     work_ = true;
+    AdvanceRounds();
 }
 
 // Performs one action of the rounds; false when the robot has to wait for messages.
@@ -95,6 +96,17 @@ bool SolverActor::SyncAction(const certify::RoundAction& a) {
     return false;
 }
 
+// Takes every action the rounds allow now. Called when a round message arrives, not only on the
+// tick: each round is several message hops, and waiting for a tick at every hop paced the team.
+void SolverActor::AdvanceRounds() {
+    if (!rounds_ || rounds_level_ != state_.StaircaseLevel()) return;
+    bool progressed = false;
+    while (!rounds_converged_ && !rounds_gave_up_ && SyncAction(rounds_->Next())) {
+        progressed = true;
+    }
+    if (progressed) last_round_progress_ = std::chrono::steady_clock::now();
+}
+
 // Synchronous mode: nothing before the graph is final; then rounds until converged (or given up:
 // asynchronous steps from there, Tick's usual path).
 void SolverActor::SyncTick() {
@@ -123,11 +135,7 @@ void SolverActor::SyncTick() {
         for (const auto& s : sums) OnRoundSums(s);
         last_round_progress_ = std::chrono::steady_clock::now();
     }
-    bool progressed = false;
-    while (!rounds_converged_ && !rounds_gave_up_ && SyncAction(rounds_->Next())) {
-        progressed = true;
-    }
-    if (progressed) last_round_progress_ = std::chrono::steady_clock::now();
+    AdvanceRounds();
     work_ = false;
     if (publish_pending_) Publish();
     const auto now = std::chrono::steady_clock::now();

@@ -176,7 +176,7 @@ bool MapperActor::OnMapUpdate(const transport::Message& m) {
         return true;
     }
     std::string error;
-    auto submap = slam::DeserializeSubmap(*body->bytes, &error);
+    auto submap = slam::DeserializeSubmap(*body->bytes, &error, config_.map.pack_closed_submaps);
     if (!submap || !(submap->id == id) || !(submap->anchor == body->anchor)) return false;
     submap->T_world_submap = body->T_world_anchor;
     map_.AddSubmap(std::move(*submap));

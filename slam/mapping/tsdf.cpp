@@ -10,6 +10,7 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "slam/core/check.h"
 #include "slam/mapping/tsdf_fuse.h"
 #include "slam/mapping/tsdf_impl.h"
 #include "slam/mapping/tsdf_mesh.h"
@@ -175,6 +176,43 @@ void CastRay(const Eigen::Vector3f& o, const Ray& ray, const Band& band, BandUpd
     }
 }
 
+// The sizes of a live volume's grids.
+TsdfStats GridStats(const TsdfVolume::Impl& im) {
+    TsdfStats s;
+    s.active_voxels = im.weight->tree().activeVoxelCount();
+    s.leaf_blocks = im.weight->tree().leafCount();
+    s.allocated_voxels = s.leaf_blocks * Leaf::SIZE;
+    s.memory_bytes = im.sdf->tree().memUsage() + im.weight->tree().memUsage();
+    return s;
+}
+
+// Frees the grids and the mesh cache of a live `im`, keeping `bytes` (its SerializeTsdf).
+void PackTsdf(TsdfVolume::Impl& im, std::string bytes) {
+    im.packed_stats = GridStats(im);
+    im.packed_stats.memory_bytes = bytes.size();
+    im.packed = std::move(bytes);
+    im.sdf.reset();
+    im.weight.reset();
+    std::unordered_set<openvdb::Coord>().swap(im.dirty_blocks);
+    std::unordered_map<openvdb::Coord, TsdfBlockMesh>().swap(im.mesh_cache);
+}
+
+// A live copy of a packed `im` (every block dirty). Its bytes were checked when they were kept.
+std::unique_ptr<TsdfVolume::Impl> UnpackTsdf(const TsdfVolume::Impl& im) {
+    std::string error;
+    auto live = DeserializeTsdf(im.packed, &error);
+    CERTISLAM_CHECK(live != nullptr);
+    return live;
+}
+
+// The state to read: `im` itself when live, else a decoded copy kept in `*decoded`.
+const TsdfVolume::Impl& Readable(const TsdfVolume::Impl& im,
+                                 std::unique_ptr<TsdfVolume::Impl>* decoded) {
+    if (!im.IsPacked()) return im;
+    *decoded = UnpackTsdf(im);
+    return **decoded;
+}
+
 }  // namespace
 
 void TsdfConfig::Validate() const {
@@ -219,8 +257,34 @@ TsdfVolume::~TsdfVolume() = default;
 TsdfVolume::TsdfVolume(TsdfVolume&&) noexcept = default;
 TsdfVolume& TsdfVolume::operator=(TsdfVolume&&) noexcept = default;
 
+TsdfVolume::Impl& TsdfVolume::Writable() {
+    if (impl_->IsPacked()) impl_ = UnpackTsdf(*impl_);
+    return *impl_;
+}
+
+void TsdfVolume::Pack() {
+    if (!impl_->IsPacked()) PackTsdf(*impl_, SerializeTsdf(*impl_));
+}
+
+bool TsdfVolume::packed() const { return impl_->IsPacked(); }
+
+std::optional<TsdfVolume> TsdfVolume::DeserializePacked(std::string_view bytes,
+                                                        std::string* error) {
+    auto impl = DeserializeTsdf(bytes, error);
+    if (!impl) return std::nullopt;
+    PackTsdf(*impl, std::string(bytes));
+    return TsdfVolume(std::move(impl));
+}
+
 TsdfVolume TsdfVolume::Clone() const {
     auto impl = std::make_unique<Impl>(impl_->config);
+    if (impl_->IsPacked()) {
+        impl->sdf.reset();
+        impl->weight.reset();
+        impl->packed = impl_->packed;
+        impl->packed_stats = impl_->packed_stats;
+        return TsdfVolume(std::move(impl));
+    }
     impl->sdf = impl_->sdf->deepCopy();
     impl->weight = impl_->weight->deepCopy();
     impl->dirty_blocks = impl_->dirty_blocks;
@@ -230,7 +294,8 @@ TsdfVolume TsdfVolume::Clone() const {
 
 TsdfIntegrateResult TsdfVolume::Integrate(const PointCloud& points,
                                           const Eigen::Isometry3d& T_volume_sensor) {
-    const TsdfConfig& cfg = impl_->config;
+    Impl& im = Writable();
+    const TsdfConfig& cfg = im.config;
     const Eigen::Matrix3f R = T_volume_sensor.rotation().cast<float>();
     const Eigen::Vector3f origin = T_volume_sensor.translation().cast<float>();
     const float min_sq = static_cast<float>(cfg.min_range_m * cfg.min_range_m);
@@ -252,7 +317,7 @@ TsdfIntegrateResult TsdfVolume::Integrate(const PointCloud& points,
     const Band band{voxel, static_cast<float>(cfg.truncation_m()),
                     static_cast<float>(cfg.behind_surface_voxels) * voxel, radius * radius,
                     cfg.weight_dropoff};
-    BandUpdater updater(*impl_);
+    BandUpdater updater(im);
     if (cfg.group_points_by_voxel) {
         const std::vector<Ray> rays = GroupByVoxel(ends, origin, 1.0f / voxel);
         for (const Ray& r : rays) CastRay(origin, r, band, &updater);
@@ -266,20 +331,17 @@ TsdfIntegrateResult TsdfVolume::Integrate(const PointCloud& points,
 }
 
 std::optional<TsdfVoxel> TsdfVolume::Query(const Eigen::Vector3d& p_volume) const {
-    const Eigen::Vector3d q = (p_volume / impl_->config.voxel_size_m).array().round();
+    std::unique_ptr<Impl> decoded;
+    const Impl& im = Readable(*impl_, &decoded);
+    const Eigen::Vector3d q = (p_volume / im.config.voxel_size_m).array().round();
     const openvdb::Coord ijk(int(q.x()), int(q.y()), int(q.z()));
-    const float w = impl_->weight->tree().getValue(ijk);
+    const float w = im.weight->tree().getValue(ijk);
     if (w <= 0.0f) return std::nullopt;
-    return TsdfVoxel{impl_->sdf->tree().getValue(ijk), w};
+    return TsdfVoxel{im.sdf->tree().getValue(ijk), w};
 }
 
 TsdfStats TsdfVolume::Stats() const {
-    TsdfStats s;
-    s.active_voxels = impl_->weight->tree().activeVoxelCount();
-    s.leaf_blocks = impl_->weight->tree().leafCount();
-    s.allocated_voxels = s.leaf_blocks * Leaf::SIZE;
-    s.memory_bytes = impl_->sdf->tree().memUsage() + impl_->weight->tree().memUsage();
-    return s;
+    return impl_->IsPacked() ? impl_->packed_stats : GridStats(*impl_);
 }
 
 const TsdfConfig& TsdfVolume::config() const { return impl_->config; }
@@ -287,16 +349,27 @@ const TsdfConfig& TsdfVolume::config() const { return impl_->config; }
 std::size_t TsdfVolume::last_remeshed_blocks() const { return impl_->last_remeshed; }
 
 void TsdfVolume::FuseVoxels(const TsdfVolume& other, const Eigen::Isometry3d& T_this_other) {
-    FuseTsdfVoxels(*impl_, *other.impl_, T_this_other);
+    std::unique_ptr<Impl> decoded;
+    const Impl& src = Readable(*other.impl_, &decoded);
+    FuseTsdfVoxels(Writable(), src, T_this_other);
 }
 
-TriangleMesh TsdfVolume::ExtractMesh() { return ExtractTsdfMesh(*impl_); }
+TriangleMesh TsdfVolume::ExtractMesh() {
+    if (!impl_->IsPacked()) return ExtractTsdfMesh(*impl_);
+    const std::unique_ptr<Impl> decoded = UnpackTsdf(*impl_);
+    TriangleMesh mesh = ExtractTsdfMesh(*decoded);
+    impl_->last_remeshed = decoded->last_remeshed;
+    return mesh;
+}
 
 bool TsdfVolume::SameVoxels(const TsdfVolume& other) const {
-    return SameTsdfVoxels(*impl_, *other.impl_);
+    std::unique_ptr<Impl> a, b;
+    return SameTsdfVoxels(Readable(*impl_, &a), Readable(*other.impl_, &b));
 }
 
-std::string TsdfVolume::Serialize() const { return SerializeTsdf(*impl_); }
+std::string TsdfVolume::Serialize() const {
+    return impl_->IsPacked() ? impl_->packed : SerializeTsdf(*impl_);
+}
 
 std::optional<TsdfVolume> TsdfVolume::Deserialize(std::string_view bytes, std::string* error) {
     auto impl = DeserializeTsdf(bytes, error);

@@ -60,7 +60,8 @@ struct TsdfStats {
     std::size_t active_voxels = 0;     ///< voxels holding an observation
     std::size_t allocated_voxels = 0;  ///< voxels in allocated 8^3 leaf blocks (>= active)
     std::size_t leaf_blocks = 0;       ///< allocated 8^3 leaf blocks
-    std::size_t memory_bytes = 0;      ///< OpenVDB's memUsage() of the distance + weight grids
+    std::size_t memory_bytes = 0;      ///< OpenVDB's memUsage() of the distance + weight grids,
+                                       ///< or the bytes held when the volume is packed
 };
 
 /// One voxel's stored state.
@@ -103,7 +104,8 @@ class TsdfVolume {
 
     /// The zero level set as a mesh in the volume frame (marching cubes over cubes whose 8
     /// corners weigh more than min_mesh_weight). Incremental: only the 8^3 blocks touched since
-    /// the last call (and their neighbours) are re-meshed; the rest come from a cache.
+    /// the last call (and their neighbours) are re-meshed; the rest come from a cache. A packed
+    /// volume is meshed whole from a temporary copy (the same mesh).
     TriangleMesh ExtractMesh();
 
     /// Number of blocks re-meshed by the last ExtractMesh call.
@@ -124,11 +126,25 @@ class TsdfVolume {
     /// Parses Serialize's bytes. Untrusted input: returns nullopt and sets `*error` on failure.
     static std::optional<TsdfVolume> Deserialize(std::string_view bytes, std::string* error);
 
+    /// Keeps only Serialize's lossless bytes (and Stats' sizes): the grids and the mesh cache are
+    /// freed. Reading a packed volume (Query, Stats, ExtractMesh, SameVoxels, Serialize, Clone,
+    /// FuseVoxels as the source) decodes a temporary copy and leaves it packed; writing into it
+    /// (Integrate, FuseVoxels as the target) unpacks it for good first. Idempotent.
+    void Pack();
+
+    /// True from Pack (or DeserializePacked) until the next write.
+    bool packed() const;
+
+    /// Deserialize, then kept packed: the bytes are checked by a full decode, then only they stay.
+    static std::optional<TsdfVolume> DeserializePacked(std::string_view bytes, std::string* error);
+
     /// The OpenVDB state, opaque here (defined in tsdf_impl.h, private to tsdf*.cpp).
     struct Impl;
 
   private:
     explicit TsdfVolume(std::unique_ptr<Impl> impl);
+    /// The live state to write into (unpacks a packed volume).
+    Impl& Writable();
     std::unique_ptr<Impl> impl_;
 };
 

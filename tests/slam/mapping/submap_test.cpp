@@ -191,6 +191,7 @@ TEST(TsdfMap, KeepsWithinItsMemoryBudgetByCoarseningThenSkipping) {
     free_config.memory_budget_mb = 0.0;    // no budget
     free_config.submap_max_keyframes = 1;  // every scan its own volume: memory grows per scan
     free_config.tsdf.voxel_size_m = 0.1;
+    free_config.pack_closed_submaps = false;  // live volumes: packed ones are the next test's
     const auto poses = Drive();
     TsdfMap free(0, free_config);
     for (std::size_t i = 0; i < poses.size(); ++i) {
@@ -229,6 +230,59 @@ TEST(TsdfMap, KeepsWithinItsMemoryBudgetByCoarseningThenSkipping) {
     TsdfMapConfig bad;
     bad.memory_budget_mb = -1.0;
     EXPECT_THROW(TsdfMap(0, bad), std::invalid_argument);
+}
+
+// Closed and received submaps kept as their compressed bytes give the same voxels, meshes and
+// fused volume as live ones, and the budget counts the bytes held.
+TEST(TsdfMap, PackedSubmapsGiveTheSameMapAndCountTheirBytes) {
+    const std::vector<Box> scene = testing::GroundAndCube(kGround);
+    TsdfMapConfig live_config;
+    live_config.submap_max_keyframes = 3;  // 8 scans: 3 submaps, the first two closed
+    live_config.pack_closed_submaps = false;
+    TsdfMapConfig packed_config = live_config;
+    packed_config.pack_closed_submaps = true;
+    const auto poses = Drive();
+    const TsdfMap live = BuildMap(0, live_config, poses, poses);
+    TsdfMap packed = BuildMap(0, packed_config, poses, poses);
+    ASSERT_EQ(packed.submaps().size(), 3u);
+    std::size_t held = 0, live_bytes = 0;
+    for (std::size_t i = 0; i < 3; ++i) {
+        const TsdfVolume& v = packed.submaps()[i].volume;
+        EXPECT_EQ(v.packed(), i < 2) << "submap " << i;  // the active one stays live
+        EXPECT_TRUE(v.SameVoxels(live.submaps()[i].volume)) << "submap " << i;
+        EXPECT_EQ(v.Stats().active_voxels, live.submaps()[i].volume.Stats().active_voxels);
+        held += i < 2 ? v.Serialize().size() : v.Stats().memory_bytes;
+        live_bytes += live.submaps()[i].volume.Stats().memory_bytes;
+    }
+    EXPECT_EQ(packed.Budget().memory_bytes, held);
+    EXPECT_LT(held, live_bytes);
+
+    // A peer's submap arrives packed and stays packed through meshing and fusion.
+    TsdfMap peer(1, packed_config);
+    peer.Insert(0, Pose(9, -1, 0, 2.0), ScanBoxes(scene, Pose(9, -1, 0, 2.0)));
+    std::string error;
+    auto received = DeserializeSubmap(SerializeSubmap(peer.submaps().front()), &error, true);
+    ASSERT_TRUE(received.has_value()) << error;
+    EXPECT_TRUE(received->volume.packed());
+    EXPECT_TRUE(received->volume.SameVoxels(peer.submaps().front().volume));
+    TsdfMap live_team = BuildMap(0, live_config, poses, poses);
+    live_team.AddSubmap(*DeserializeSubmap(SerializeSubmap(peer.submaps().front()), &error));
+    packed.AddSubmap(std::move(*received));
+
+    const TriangleMesh a = live_team.ExtractMesh(), b = packed.ExtractMesh();
+    ASSERT_EQ(a.triangles, b.triangles);
+    EXPECT_EQ(MaxVertexDistance(a, b), 0.0);
+    EXPECT_TRUE(live_team.Fuse(TsdfConfig{}).SameVoxels(packed.Fuse(TsdfConfig{})));
+    for (const Submap& s : packed.submaps())
+        EXPECT_EQ(s.volume.packed(), s.id.robot == 1 || s.id.index < 2);
+    // Writing into a packed volume unpacks it; its voxels are the same as before.
+    TsdfVolume v = packed.submaps().front().volume.Clone();
+    ASSERT_TRUE(v.packed());
+    v.Integrate(ScanBoxes(scene, poses[0]), Eigen::Isometry3d::Identity());
+    EXPECT_FALSE(v.packed());
+    TsdfVolume w = live.submaps().front().volume.Clone();
+    w.Integrate(ScanBoxes(scene, poses[0]), Eigen::Isometry3d::Identity());
+    EXPECT_TRUE(v.SameVoxels(w));
 }
 
 }  // namespace

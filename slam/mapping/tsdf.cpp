@@ -2,6 +2,7 @@
 // meshing, fusion and bytes are in tsdf_mesh, tsdf_fuse and tsdf_serialize.
 #include "slam/mapping/tsdf.h"
 
+#include <zstd.h>
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -186,11 +187,35 @@ TsdfStats GridStats(const TsdfVolume::Impl& im) {
     return s;
 }
 
+// zstd over the blosc-compressed OpenVDB stream: its headers, masks and the blosc blocks
+// of a sparse band still compress about twofold (the mapper's wire payload does the same).
+constexpr int kPackZstdLevel = 3;
+
+std::string ZstdPack(const std::string& bytes) {
+    std::string out(ZSTD_compressBound(bytes.size()), '\0');
+    const std::size_t n =
+        ZSTD_compress(out.data(), out.size(), bytes.data(), bytes.size(), kPackZstdLevel);
+    CERTISLAM_CHECK(!ZSTD_isError(n));
+    out.resize(n);
+    out.shrink_to_fit();
+    return out;
+}
+
+// The bytes ZstdPack was given (our own frame: its size is recorded in it).
+std::string ZstdUnpack(const std::string& frame) {
+    const unsigned long long size = ZSTD_getFrameContentSize(frame.data(), frame.size());
+    CERTISLAM_CHECK(size != ZSTD_CONTENTSIZE_ERROR && size != ZSTD_CONTENTSIZE_UNKNOWN);
+    std::string out(size, '\0');
+    const std::size_t n = ZSTD_decompress(out.data(), out.size(), frame.data(), frame.size());
+    CERTISLAM_CHECK(!ZSTD_isError(n) && n == size);
+    return out;
+}
+
 // Frees the grids and the mesh cache of a live `im`, keeping `bytes` (its SerializeTsdf).
-void PackTsdf(TsdfVolume::Impl& im, std::string bytes) {
+void PackTsdf(TsdfVolume::Impl& im, const std::string& bytes) {
     im.packed_stats = GridStats(im);
-    im.packed_stats.memory_bytes = bytes.size();
-    im.packed = std::move(bytes);
+    im.packed = ZstdPack(bytes);
+    im.packed_stats.memory_bytes = im.packed.size();
     im.sdf.reset();
     im.weight.reset();
     std::unordered_set<openvdb::Coord>().swap(im.dirty_blocks);
@@ -200,7 +225,7 @@ void PackTsdf(TsdfVolume::Impl& im, std::string bytes) {
 // A live copy of a packed `im` (every block dirty). Its bytes were checked when they were kept.
 std::unique_ptr<TsdfVolume::Impl> UnpackTsdf(const TsdfVolume::Impl& im) {
     std::string error;
-    auto live = DeserializeTsdf(im.packed, &error);
+    auto live = DeserializeTsdf(ZstdUnpack(im.packed), &error);
     CERTISLAM_CHECK(live != nullptr);
     return live;
 }
@@ -368,7 +393,7 @@ bool TsdfVolume::SameVoxels(const TsdfVolume& other) const {
 }
 
 std::string TsdfVolume::Serialize() const {
-    return impl_->IsPacked() ? impl_->packed : SerializeTsdf(*impl_);
+    return impl_->IsPacked() ? ZstdUnpack(impl_->packed) : SerializeTsdf(*impl_);
 }
 
 std::optional<TsdfVolume> TsdfVolume::Deserialize(std::string_view bytes, std::string* error) {

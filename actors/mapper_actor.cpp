@@ -254,7 +254,7 @@ void MapperActor::UpdateStats() {
 slam::TriangleMesh MapperActor::MakeMesh(double voxel_m) const {
     slam::TsdfConfig config = config_.map.tsdf;
     config.voxel_size_m = voxel_m;
-    return map_.Fuse(config).ExtractMesh();
+    return map_.FusedMesh(config);  // slab by slab: not the whole fused volume at once
 }
 
 slam::TriangleMesh MapperActor::FusedMesh(double voxel_m) {

@@ -170,6 +170,12 @@ TsdfVolume TsdfMap::Fuse(const TsdfConfig& config) const {
     return fused;
 }
 
+TriangleMesh TsdfMap::FusedMesh(const TsdfConfig& config) const {
+    std::vector<TsdfVolume::FusePart> parts;
+    for (const Submap& s : submaps_) parts.push_back({&s.volume, s.T_world_submap});
+    return TsdfVolume::FuseAndMesh(parts, config);
+}
+
 // Submap bytes: a fixed little-endian header (ids, anchor pose, keyframes) + the TSDF stream.
 namespace {
 

@@ -109,6 +109,10 @@ class TsdfMap {
     /// and averaged by weight. Overlapping submaps (and robots) then give one surface.
     TsdfVolume Fuse(const TsdfConfig& config) const;
 
+    /// Fuse(config)'s mesh, built slab by slab (TsdfVolume::FuseAndMesh): the same mesh without
+    /// the whole fused volume in memory.
+    TriangleMesh FusedMesh(const TsdfConfig& config) const;
+
     /// The submaps, own and received, in insertion order.
     const std::vector<Submap>& submaps() const { return submaps_; }
 

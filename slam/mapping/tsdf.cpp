@@ -10,6 +10,7 @@
 #include <limits>
 #include <mutex>
 #include <stdexcept>
+#include <utility>
 
 #include "slam/core/check.h"
 #include "slam/mapping/tsdf_fuse.h"
@@ -230,6 +231,26 @@ std::unique_ptr<TsdfVolume::Impl> UnpackTsdf(const TsdfVolume::Impl& im) {
     return live;
 }
 
+// The x indices [lo, hi] of a volume of voxel `voxel` that FuseTsdfVoxels maps `src`'s observed
+// voxels to by `T`: the images of their bounding box's corners, widened by one voxel (rounding).
+std::pair<int, int> FusedXRange(const TsdfVolume::Impl& src, const Eigen::Isometry3d& T,
+                                double voxel) {
+    const openvdb::CoordBBox box = src.weight->evalActiveVoxelBoundingBox();
+    if (box.empty()) return {1, 0};
+    const Eigen::Affine3d A =
+        Eigen::Scaling(1.0 / voxel) * T * Eigen::Scaling(src.config.voxel_size_m);
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (int c = 0; c < 8; ++c) {
+        const openvdb::Coord& x = (c & 1) ? box.max() : box.min();
+        const openvdb::Coord& y = (c & 2) ? box.max() : box.min();
+        const openvdb::Coord& z = (c & 4) ? box.max() : box.min();
+        const double fx = (A * Eigen::Vector3d(x.x(), y.y(), z.z())).x();
+        lo = std::min(lo, fx);
+        hi = std::max(hi, fx);
+    }
+    return {static_cast<int>(std::floor(lo)) - 1, static_cast<int>(std::ceil(hi)) + 1};
+}
+
 // The state to read: `im` itself when live, else a decoded copy kept in `*decoded`.
 const TsdfVolume::Impl& Readable(const TsdfVolume::Impl& im,
                                  std::unique_ptr<TsdfVolume::Impl>* decoded) {
@@ -377,6 +398,47 @@ void TsdfVolume::FuseVoxels(const TsdfVolume& other, const Eigen::Isometry3d& T_
     std::unique_ptr<Impl> decoded;
     const Impl& src = Readable(*other.impl_, &decoded);
     FuseTsdfVoxels(Writable(), src, T_this_other);
+}
+
+TriangleMesh TsdfVolume::FuseAndMesh(const std::vector<FusePart>& parts, const TsdfConfig& config,
+                                     int slab_blocks) {
+    config.Validate();
+    CERTISLAM_CHECK(slab_blocks >= 1);
+    constexpr int kDim = static_cast<int>(Leaf::DIM);
+    std::vector<std::pair<int, int>> ranges;
+    int x_min = std::numeric_limits<int>::max(), x_max = std::numeric_limits<int>::min();
+    for (const FusePart& p : parts) {
+        std::unique_ptr<Impl> decoded;
+        ranges.push_back(
+            FusedXRange(Readable(*p.volume->impl_, &decoded), p.T_fused_part, config.voxel_size_m));
+        if (ranges.back().first > ranges.back().second) continue;
+        x_min = std::min(x_min, ranges.back().first);
+        x_max = std::max(x_max, ranges.back().second);
+    }
+    // Slabs start on block edges, so each block is meshed whole in one slab, and in the order
+    // ExtractMesh welds them (origins sorted, x first). A slab also fuses the first voxel column
+    // of the next: the corners of its last cubes. A block without a leaf has no observed corner.
+    TsdfMeshWelder welder;
+    for (int x0 = x_min & ~(kDim - 1); x_min <= x_max && x0 <= x_max; x0 += slab_blocks * kDim) {
+        const int x1 = x0 + slab_blocks * kDim;
+        Impl slab(config);
+        for (std::size_t i = 0; i < parts.size(); ++i) {
+            if (ranges[i].second < x0 || ranges[i].first > x1) continue;
+            std::unique_ptr<Impl> decoded;
+            FuseTsdfVoxels(slab, Readable(*parts[i].volume->impl_, &decoded), parts[i].T_fused_part,
+                           x0, x1);
+        }
+        std::vector<openvdb::Coord> origins;
+        for (auto it = slab.weight->tree().cbeginLeaf(); it; ++it) {
+            if (it->origin().x() < x1) origins.push_back(it->origin());
+        }
+        std::sort(origins.begin(), origins.end());
+        for (const openvdb::Coord& o : origins) {
+            const TsdfBlockMesh m = MeshBlock(slab, o);
+            if (!m.triangles.empty()) welder.Add(m);
+        }
+    }
+    return welder.Take();
 }
 
 TriangleMesh TsdfVolume::ExtractMesh() {

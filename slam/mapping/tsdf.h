@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "slam/core/keyframe.h"
 #include "slam/mapping/mesh.h"
@@ -101,6 +102,18 @@ class TsdfVolume {
 
     /// The voxel nearest to `p_volume`, or nullopt when it was never observed.
     std::optional<TsdfVoxel> Query(const Eigen::Vector3d& p_volume) const;
+
+    /// One volume of a fusion and its pose in the fused frame.
+    struct FusePart {
+        const TsdfVolume* volume = nullptr;                              ///< not owned
+        Eigen::Isometry3d T_fused_part = Eigen::Isometry3d::Identity();  ///< its pose
+    };
+
+    /// The mesh of a volume with `config` into which every part was fused in order (FuseVoxels,
+    /// then ExtractMesh), built in slabs of `slab_blocks` 8^3 blocks along x: the same mesh, with
+    /// one slab of the fused volume (and one decoded packed part) in memory at a time.
+    static TriangleMesh FuseAndMesh(const std::vector<FusePart>& parts, const TsdfConfig& config,
+                                    int slab_blocks = 8);
 
     /// The zero level set as a mesh in the volume frame (marching cubes over cubes whose 8
     /// corners weigh more than min_mesh_weight). Incremental: only the 8^3 blocks touched since

@@ -185,6 +185,34 @@ TEST(TsdfMap, FusesTwoRobotsSubmapsIntoOneFrame) {
     EXPECT_GT(near_plus_x, 20);   // seen by robot 1 only
 }
 
+// Fusing and meshing slab by slab gives exactly the mesh of the whole fused volume, whatever
+// the slab width (here down to one block, so blocks, cubes and welds cross slab borders).
+TEST(TsdfMap, FusedMeshBySlabsEqualsTheMeshOfTheFusedVolume) {
+    const std::vector<Box> scene = testing::GroundAndCube(kGround);
+    TsdfMapConfig cfg;
+    cfg.submap_max_keyframes = 2;
+    const auto poses = Drive();
+    TsdfMap map = BuildMap(0, cfg, poses, poses);
+    const TsdfMap peer = BuildMap(1, cfg, {Pose(9, -1, 0, 2.0)}, {Pose(9, -1, 0, 2.0)});
+    std::string error;
+    map.AddSubmap(*DeserializeSubmap(SerializeSubmap(peer.submaps()[0]), &error));
+    ASSERT_GT(map.submaps().size(), 2u);
+    TsdfConfig fused_config;
+    fused_config.voxel_size_m = 0.15;  // not the submaps' voxel: resampled
+    const TriangleMesh whole = map.Fuse(fused_config).ExtractMesh();
+    ASSERT_GT(whole.triangles.size(), 1000u);
+    std::vector<TsdfVolume::FusePart> parts;
+    for (const Submap& s : map.submaps()) parts.push_back({&s.volume, s.T_world_submap});
+    for (const int blocks : {1, 3, 1000}) {
+        const TriangleMesh slabs = blocks == 1000
+                                       ? map.FusedMesh(fused_config)
+                                       : TsdfVolume::FuseAndMesh(parts, fused_config, blocks);
+        ASSERT_EQ(slabs.vertices.size(), whole.vertices.size()) << blocks;
+        EXPECT_EQ(slabs.triangles, whole.triangles) << blocks;
+        EXPECT_EQ(MaxVertexDistance(slabs, whole), 0.0) << blocks;
+    }
+}
+
 TEST(TsdfMap, KeepsWithinItsMemoryBudgetByCoarseningThenSkipping) {
     const std::vector<Box> scene = testing::GroundAndCube(kGround);
     TsdfMapConfig free_config;

@@ -176,7 +176,7 @@ bool MapperActor::OnMapUpdate(const transport::Message& m) {
         return true;
     }
     std::string error;
-    auto submap = slam::DeserializeSubmap(*body->bytes, &error);
+    auto submap = slam::DeserializeSubmap(*body->bytes, &error, config_.map.pack_closed_submaps);
     if (!submap || !(submap->id == id) || !(submap->anchor == body->anchor)) return false;
     submap->T_world_submap = body->T_world_anchor;
     map_.AddSubmap(std::move(*submap));
@@ -254,7 +254,7 @@ void MapperActor::UpdateStats() {
 slam::TriangleMesh MapperActor::MakeMesh(double voxel_m) const {
     slam::TsdfConfig config = config_.map.tsdf;
     config.voxel_size_m = voxel_m;
-    return map_.Fuse(config).ExtractMesh();
+    return map_.FusedMesh(config);  // slab by slab: not the whole fused volume at once
 }
 
 slam::TriangleMesh MapperActor::FusedMesh(double voxel_m) {

@@ -57,8 +57,17 @@ bool TsdfMap::OverBudget() {
     // Eight times fewer voxels per volume for each doubling; existing submaps are kept as they are.
     ++budget_.coarsenings;
     budget_.voxel_size_m *= 2.0;
-    active_.reset();
+    CloseActive();
     return false;
+}
+
+void TsdfMap::CloseActive() {
+    if (!active_) return;
+    const std::size_t i = *active_;
+    active_.reset();
+    if (!config_.pack_closed_submaps) return;
+    submaps_[i].volume.Pack();  // its mesh, if cached, stays valid
+    memory_[i] = submaps_[i].volume.Stats().memory_bytes;
 }
 
 TsdfMapInsertResult TsdfMap::Insert(int keyframe, const Eigen::Isometry3d& T_world_sensor,
@@ -97,6 +106,7 @@ TsdfMapInsertResult TsdfMap::Insert(int keyframe, const Eigen::Isometry3d& T_wor
                                   std::move(volume)});
         mesh_.emplace_back();
         memory_.push_back(submaps_.back().volume.Stats().memory_bytes);
+        CloseActive();
         active_ = submaps_.size() - 1;
         result.started_submap = true;
         result.submap = *active_;
@@ -130,6 +140,7 @@ std::size_t TsdfMap::Reanchor(
 }
 
 void TsdfMap::AddSubmap(Submap submap) {
+    if (config_.pack_closed_submaps) submap.volume.Pack();  // only received and re-posed
     for (std::size_t i = 0; i < submaps_.size(); ++i) {
         if (submaps_[i].id == submap.id) {
             submaps_[i] = std::move(submap);
@@ -157,6 +168,12 @@ TsdfVolume TsdfMap::Fuse(const TsdfConfig& config) const {
     TsdfVolume fused(config);
     for (const Submap& s : submaps_) fused.FuseVoxels(s.volume, s.T_world_submap);
     return fused;
+}
+
+TriangleMesh TsdfMap::FusedMesh(const TsdfConfig& config) const {
+    std::vector<TsdfVolume::FusePart> parts;
+    for (const Submap& s : submaps_) parts.push_back({&s.volume, s.T_world_submap});
+    return TsdfVolume::FuseAndMesh(parts, config);
 }
 
 // Submap bytes: a fixed little-endian header (ids, anchor pose, keyframes) + the TSDF stream.
@@ -201,7 +218,7 @@ std::string SerializeSubmap(const Submap& submap) {
     return out + submap.volume.Serialize();
 }
 
-std::optional<Submap> DeserializeSubmap(std::string_view bytes, std::string* error) {
+std::optional<Submap> DeserializeSubmap(std::string_view bytes, std::string* error, bool packed) {
     auto fail = [&](const std::string& what) {
         if (error != nullptr) *error = "submap bytes: " + what;
         return std::nullopt;
@@ -234,8 +251,9 @@ std::optional<Submap> DeserializeSubmap(std::string_view bytes, std::string* err
         p += sizeof v;
     }
     std::string volume_error;
-    auto volume = TsdfVolume::Deserialize(bytes.substr(static_cast<std::size_t>(p - bytes.data())),
-                                          &volume_error);
+    const std::string_view volume_bytes = bytes.substr(static_cast<std::size_t>(p - bytes.data()));
+    auto volume = packed ? TsdfVolume::DeserializePacked(volume_bytes, &volume_error)
+                         : TsdfVolume::Deserialize(volume_bytes, &volume_error);
     if (!volume) return fail(volume_error);
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = R;

@@ -48,6 +48,9 @@ struct TsdfMapConfig {
     double memory_budget_mb = 64.0;   ///< voxel memory of all submaps at most, MiB (0: none); over
                                       ///< it, new submaps are coarser, then scans are skipped
     int max_coarsening = 3;           ///< voxels grow at most 2^this times over budget, in [0, 6]
+    bool pack_closed_submaps = true;  ///< a closed own submap and a peer's submap keep only their
+                                      ///< compressed bytes (TsdfVolume::Pack), decoded when
+                                      ///< meshed or fused; the budget counts those bytes
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -68,7 +71,8 @@ struct TsdfMapInsertResult {
 
 /// How a TsdfMap kept within its memory budget.
 struct TsdfMapBudget {
-    std::size_t memory_bytes = 0;  ///< voxel memory of every submap now (OpenVDB's memUsage)
+    std::size_t memory_bytes = 0;  ///< voxel memory of every submap now (OpenVDB's memUsage of a
+                                   ///< live volume, the bytes held by a packed one)
     int coarsenings = 0;           ///< times the voxel of new submaps was doubled
     double voxel_size_m = 0.0;     ///< voxel of the next own submap
     int skipped_scans = 0;         ///< keyframes not integrated: over budget at the coarsest voxel
@@ -93,7 +97,7 @@ class TsdfMap {
         const std::function<std::optional<Eigen::Isometry3d>(const PoseId&)>& T_world_anchor);
 
     /// Adds a submap built elsewhere (a peer's, after DeserializeSubmap); it replaces a submap
-    /// with the same id. Later Insert calls never write into it.
+    /// with the same id. Later Insert calls never write into it (packed if pack_closed_submaps).
     void AddSubmap(Submap submap);
 
     /// The union of all submaps' meshes in the world frame (each submap meshed in its own
@@ -104,6 +108,10 @@ class TsdfMap {
     /// voxel of every submap is mapped by T_world_submap to the nearest voxel of the result
     /// and averaged by weight. Overlapping submaps (and robots) then give one surface.
     TsdfVolume Fuse(const TsdfConfig& config) const;
+
+    /// Fuse(config)'s mesh, built slab by slab (TsdfVolume::FuseAndMesh): the same mesh without
+    /// the whole fused volume in memory.
+    TriangleMesh FusedMesh(const TsdfConfig& config) const;
 
     /// The submaps, own and received, in insertion order.
     const std::vector<Submap>& submaps() const { return submaps_; }
@@ -118,6 +126,8 @@ class TsdfMap {
     /// Over budget before an insert: doubles the voxel of new submaps (closing the active one)
     /// while it may; true when the scan must be skipped (still over at the coarsest voxel).
     bool OverBudget();
+    /// Ends writes into the active submap (packing it if pack_closed_submaps).
+    void CloseActive();
 
     int robot_;
     TsdfMapConfig config_;
@@ -133,7 +143,8 @@ class TsdfMap {
 std::string SerializeSubmap(const Submap& submap);
 
 /// Parses SerializeSubmap's bytes. Untrusted input: returns nullopt and sets `*error` naming
-/// what was wrong.
-std::optional<Submap> DeserializeSubmap(std::string_view bytes, std::string* error);
+/// what was wrong. With `packed`, the volume keeps the received bytes (TsdfVolume::Pack).
+std::optional<Submap> DeserializeSubmap(std::string_view bytes, std::string* error,
+                                        bool packed = false);
 
 }  // namespace certislam::slam

@@ -2,6 +2,7 @@
 // meshing, fusion and bytes are in tsdf_mesh, tsdf_fuse and tsdf_serialize.
 #include "slam/mapping/tsdf.h"
 
+#include <zstd.h>
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -9,7 +10,9 @@
 #include <limits>
 #include <mutex>
 #include <stdexcept>
+#include <utility>
 
+#include "slam/core/check.h"
 #include "slam/mapping/tsdf_fuse.h"
 #include "slam/mapping/tsdf_impl.h"
 #include "slam/mapping/tsdf_mesh.h"
@@ -175,6 +178,87 @@ void CastRay(const Eigen::Vector3f& o, const Ray& ray, const Band& band, BandUpd
     }
 }
 
+// The sizes of a live volume's grids.
+TsdfStats GridStats(const TsdfVolume::Impl& im) {
+    TsdfStats s;
+    s.active_voxels = im.weight->tree().activeVoxelCount();
+    s.leaf_blocks = im.weight->tree().leafCount();
+    s.allocated_voxels = s.leaf_blocks * Leaf::SIZE;
+    s.memory_bytes = im.sdf->tree().memUsage() + im.weight->tree().memUsage();
+    return s;
+}
+
+// zstd over the blosc-compressed OpenVDB stream: its headers, masks and the blosc blocks
+// of a sparse band still compress about twofold (the mapper's wire payload does the same).
+constexpr int kPackZstdLevel = 3;
+
+std::string ZstdPack(const std::string& bytes) {
+    std::string out(ZSTD_compressBound(bytes.size()), '\0');
+    const std::size_t n =
+        ZSTD_compress(out.data(), out.size(), bytes.data(), bytes.size(), kPackZstdLevel);
+    CERTISLAM_CHECK(!ZSTD_isError(n));
+    out.resize(n);
+    out.shrink_to_fit();
+    return out;
+}
+
+// The bytes ZstdPack was given (our own frame: its size is recorded in it).
+std::string ZstdUnpack(const std::string& frame) {
+    const unsigned long long size = ZSTD_getFrameContentSize(frame.data(), frame.size());
+    CERTISLAM_CHECK(size != ZSTD_CONTENTSIZE_ERROR && size != ZSTD_CONTENTSIZE_UNKNOWN);
+    std::string out(size, '\0');
+    const std::size_t n = ZSTD_decompress(out.data(), out.size(), frame.data(), frame.size());
+    CERTISLAM_CHECK(!ZSTD_isError(n) && n == size);
+    return out;
+}
+
+// Frees the grids and the mesh cache of a live `im`, keeping `bytes` (its SerializeTsdf).
+void PackTsdf(TsdfVolume::Impl& im, const std::string& bytes) {
+    im.packed_stats = GridStats(im);
+    im.packed = ZstdPack(bytes);
+    im.packed_stats.memory_bytes = im.packed.size();
+    im.sdf.reset();
+    im.weight.reset();
+    std::unordered_set<openvdb::Coord>().swap(im.dirty_blocks);
+    std::unordered_map<openvdb::Coord, TsdfBlockMesh>().swap(im.mesh_cache);
+}
+
+// A live copy of a packed `im` (every block dirty). Its bytes were checked when they were kept.
+std::unique_ptr<TsdfVolume::Impl> UnpackTsdf(const TsdfVolume::Impl& im) {
+    std::string error;
+    auto live = DeserializeTsdf(ZstdUnpack(im.packed), &error);
+    CERTISLAM_CHECK(live != nullptr);
+    return live;
+}
+
+// The x indices [lo, hi] of a volume of voxel `voxel` that FuseTsdfVoxels maps `src`'s observed
+// voxels to by `T`: the images of their bounding box's corners, widened by one voxel (rounding).
+std::pair<int, int> FusedXRange(const TsdfVolume::Impl& src, const Eigen::Isometry3d& T,
+                                double voxel) {
+    const openvdb::CoordBBox box = src.weight->evalActiveVoxelBoundingBox();
+    if (box.empty()) return {1, 0};
+    const Eigen::Affine3d A =
+        Eigen::Scaling(1.0 / voxel) * T * Eigen::Scaling(src.config.voxel_size_m);
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (int c = 0; c < 8; ++c) {
+        const openvdb::Coord& x = (c & 1) ? box.max() : box.min();
+        const openvdb::Coord& y = (c & 2) ? box.max() : box.min();
+        const openvdb::Coord& z = (c & 4) ? box.max() : box.min();
+        const double fx = (A * Eigen::Vector3d(x.x(), y.y(), z.z())).x();
+        lo = std::min(lo, fx);
+        hi = std::max(hi, fx);
+    }
+    return {static_cast<int>(std::floor(lo)) - 1, static_cast<int>(std::ceil(hi)) + 1};
+}
+
+// The state to read: `im` itself when live, else a decoded copy kept in `*decoded`.
+const TsdfVolume::Impl& Readable(const TsdfVolume::Impl& im,
+                                 std::unique_ptr<TsdfVolume::Impl>* decoded) {
+    if (!im.IsPacked()) return im;
+    *decoded = UnpackTsdf(im);
+    return **decoded;
+}
+
 }  // namespace
 
 void TsdfConfig::Validate() const {
@@ -219,8 +303,34 @@ TsdfVolume::~TsdfVolume() = default;
 TsdfVolume::TsdfVolume(TsdfVolume&&) noexcept = default;
 TsdfVolume& TsdfVolume::operator=(TsdfVolume&&) noexcept = default;
 
+TsdfVolume::Impl& TsdfVolume::Writable() {
+    if (impl_->IsPacked()) impl_ = UnpackTsdf(*impl_);
+    return *impl_;
+}
+
+void TsdfVolume::Pack() {
+    if (!impl_->IsPacked()) PackTsdf(*impl_, SerializeTsdf(*impl_));
+}
+
+bool TsdfVolume::packed() const { return impl_->IsPacked(); }
+
+std::optional<TsdfVolume> TsdfVolume::DeserializePacked(std::string_view bytes,
+                                                        std::string* error) {
+    auto impl = DeserializeTsdf(bytes, error);
+    if (!impl) return std::nullopt;
+    PackTsdf(*impl, std::string(bytes));
+    return TsdfVolume(std::move(impl));
+}
+
 TsdfVolume TsdfVolume::Clone() const {
     auto impl = std::make_unique<Impl>(impl_->config);
+    if (impl_->IsPacked()) {
+        impl->sdf.reset();
+        impl->weight.reset();
+        impl->packed = impl_->packed;
+        impl->packed_stats = impl_->packed_stats;
+        return TsdfVolume(std::move(impl));
+    }
     impl->sdf = impl_->sdf->deepCopy();
     impl->weight = impl_->weight->deepCopy();
     impl->dirty_blocks = impl_->dirty_blocks;
@@ -230,7 +340,8 @@ TsdfVolume TsdfVolume::Clone() const {
 
 TsdfIntegrateResult TsdfVolume::Integrate(const PointCloud& points,
                                           const Eigen::Isometry3d& T_volume_sensor) {
-    const TsdfConfig& cfg = impl_->config;
+    Impl& im = Writable();
+    const TsdfConfig& cfg = im.config;
     const Eigen::Matrix3f R = T_volume_sensor.rotation().cast<float>();
     const Eigen::Vector3f origin = T_volume_sensor.translation().cast<float>();
     const float min_sq = static_cast<float>(cfg.min_range_m * cfg.min_range_m);
@@ -252,7 +363,7 @@ TsdfIntegrateResult TsdfVolume::Integrate(const PointCloud& points,
     const Band band{voxel, static_cast<float>(cfg.truncation_m()),
                     static_cast<float>(cfg.behind_surface_voxels) * voxel, radius * radius,
                     cfg.weight_dropoff};
-    BandUpdater updater(*impl_);
+    BandUpdater updater(im);
     if (cfg.group_points_by_voxel) {
         const std::vector<Ray> rays = GroupByVoxel(ends, origin, 1.0f / voxel);
         for (const Ray& r : rays) CastRay(origin, r, band, &updater);
@@ -266,20 +377,17 @@ TsdfIntegrateResult TsdfVolume::Integrate(const PointCloud& points,
 }
 
 std::optional<TsdfVoxel> TsdfVolume::Query(const Eigen::Vector3d& p_volume) const {
-    const Eigen::Vector3d q = (p_volume / impl_->config.voxel_size_m).array().round();
+    std::unique_ptr<Impl> decoded;
+    const Impl& im = Readable(*impl_, &decoded);
+    const Eigen::Vector3d q = (p_volume / im.config.voxel_size_m).array().round();
     const openvdb::Coord ijk(int(q.x()), int(q.y()), int(q.z()));
-    const float w = impl_->weight->tree().getValue(ijk);
+    const float w = im.weight->tree().getValue(ijk);
     if (w <= 0.0f) return std::nullopt;
-    return TsdfVoxel{impl_->sdf->tree().getValue(ijk), w};
+    return TsdfVoxel{im.sdf->tree().getValue(ijk), w};
 }
 
 TsdfStats TsdfVolume::Stats() const {
-    TsdfStats s;
-    s.active_voxels = impl_->weight->tree().activeVoxelCount();
-    s.leaf_blocks = impl_->weight->tree().leafCount();
-    s.allocated_voxels = s.leaf_blocks * Leaf::SIZE;
-    s.memory_bytes = impl_->sdf->tree().memUsage() + impl_->weight->tree().memUsage();
-    return s;
+    return impl_->IsPacked() ? impl_->packed_stats : GridStats(*impl_);
 }
 
 const TsdfConfig& TsdfVolume::config() const { return impl_->config; }
@@ -287,16 +395,68 @@ const TsdfConfig& TsdfVolume::config() const { return impl_->config; }
 std::size_t TsdfVolume::last_remeshed_blocks() const { return impl_->last_remeshed; }
 
 void TsdfVolume::FuseVoxels(const TsdfVolume& other, const Eigen::Isometry3d& T_this_other) {
-    FuseTsdfVoxels(*impl_, *other.impl_, T_this_other);
+    std::unique_ptr<Impl> decoded;
+    const Impl& src = Readable(*other.impl_, &decoded);
+    FuseTsdfVoxels(Writable(), src, T_this_other);
 }
 
-TriangleMesh TsdfVolume::ExtractMesh() { return ExtractTsdfMesh(*impl_); }
+TriangleMesh TsdfVolume::FuseAndMesh(const std::vector<FusePart>& parts, const TsdfConfig& config,
+                                     int slab_blocks) {
+    config.Validate();
+    CERTISLAM_CHECK(slab_blocks >= 1);
+    constexpr int kDim = static_cast<int>(Leaf::DIM);
+    std::vector<std::pair<int, int>> ranges;
+    int x_min = std::numeric_limits<int>::max(), x_max = std::numeric_limits<int>::min();
+    for (const FusePart& p : parts) {
+        std::unique_ptr<Impl> decoded;
+        ranges.push_back(
+            FusedXRange(Readable(*p.volume->impl_, &decoded), p.T_fused_part, config.voxel_size_m));
+        if (ranges.back().first > ranges.back().second) continue;
+        x_min = std::min(x_min, ranges.back().first);
+        x_max = std::max(x_max, ranges.back().second);
+    }
+    // Slabs start on block edges, so each block is meshed whole in one slab, and in the order
+    // ExtractMesh welds them (origins sorted, x first). A slab also fuses the first voxel column
+    // of the next: the corners of its last cubes. A block without a leaf has no observed corner.
+    TsdfMeshWelder welder;
+    for (int x0 = x_min & ~(kDim - 1); x_min <= x_max && x0 <= x_max; x0 += slab_blocks * kDim) {
+        const int x1 = x0 + slab_blocks * kDim;
+        Impl slab(config);
+        for (std::size_t i = 0; i < parts.size(); ++i) {
+            if (ranges[i].second < x0 || ranges[i].first > x1) continue;
+            std::unique_ptr<Impl> decoded;
+            FuseTsdfVoxels(slab, Readable(*parts[i].volume->impl_, &decoded), parts[i].T_fused_part,
+                           x0, x1);
+        }
+        std::vector<openvdb::Coord> origins;
+        for (auto it = slab.weight->tree().cbeginLeaf(); it; ++it) {
+            if (it->origin().x() < x1) origins.push_back(it->origin());
+        }
+        std::sort(origins.begin(), origins.end());
+        for (const openvdb::Coord& o : origins) {
+            const TsdfBlockMesh m = MeshBlock(slab, o);
+            if (!m.triangles.empty()) welder.Add(m);
+        }
+    }
+    return welder.Take();
+}
+
+TriangleMesh TsdfVolume::ExtractMesh() {
+    if (!impl_->IsPacked()) return ExtractTsdfMesh(*impl_);
+    const std::unique_ptr<Impl> decoded = UnpackTsdf(*impl_);
+    TriangleMesh mesh = ExtractTsdfMesh(*decoded);
+    impl_->last_remeshed = decoded->last_remeshed;
+    return mesh;
+}
 
 bool TsdfVolume::SameVoxels(const TsdfVolume& other) const {
-    return SameTsdfVoxels(*impl_, *other.impl_);
+    std::unique_ptr<Impl> a, b;
+    return SameTsdfVoxels(Readable(*impl_, &a), Readable(*other.impl_, &b));
 }
 
-std::string TsdfVolume::Serialize() const { return SerializeTsdf(*impl_); }
+std::string TsdfVolume::Serialize() const {
+    return impl_->IsPacked() ? ZstdUnpack(impl_->packed) : SerializeTsdf(*impl_);
+}
 
 std::optional<TsdfVolume> TsdfVolume::Deserialize(std::string_view bytes, std::string* error) {
     auto impl = DeserializeTsdf(bytes, error);

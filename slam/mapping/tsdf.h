@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "slam/core/keyframe.h"
 #include "slam/mapping/mesh.h"
@@ -60,7 +61,8 @@ struct TsdfStats {
     std::size_t active_voxels = 0;     ///< voxels holding an observation
     std::size_t allocated_voxels = 0;  ///< voxels in allocated 8^3 leaf blocks (>= active)
     std::size_t leaf_blocks = 0;       ///< allocated 8^3 leaf blocks
-    std::size_t memory_bytes = 0;      ///< OpenVDB's memUsage() of the distance + weight grids
+    std::size_t memory_bytes = 0;      ///< OpenVDB's memUsage() of the distance + weight grids,
+                                       ///< or the bytes held when the volume is packed
 };
 
 /// One voxel's stored state.
@@ -101,9 +103,22 @@ class TsdfVolume {
     /// The voxel nearest to `p_volume`, or nullopt when it was never observed.
     std::optional<TsdfVoxel> Query(const Eigen::Vector3d& p_volume) const;
 
+    /// One volume of a fusion and its pose in the fused frame.
+    struct FusePart {
+        const TsdfVolume* volume = nullptr;                              ///< not owned
+        Eigen::Isometry3d T_fused_part = Eigen::Isometry3d::Identity();  ///< its pose
+    };
+
+    /// The mesh of a volume with `config` into which every part was fused in order (FuseVoxels,
+    /// then ExtractMesh), built in slabs of `slab_blocks` 8^3 blocks along x: the same mesh, with
+    /// one slab of the fused volume (and one decoded packed part) in memory at a time.
+    static TriangleMesh FuseAndMesh(const std::vector<FusePart>& parts, const TsdfConfig& config,
+                                    int slab_blocks = 8);
+
     /// The zero level set as a mesh in the volume frame (marching cubes over cubes whose 8
     /// corners weigh more than min_mesh_weight). Incremental: only the 8^3 blocks touched since
-    /// the last call (and their neighbours) are re-meshed; the rest come from a cache.
+    /// the last call (and their neighbours) are re-meshed; the rest come from a cache. A packed
+    /// volume is meshed whole from a temporary copy (the same mesh).
     TriangleMesh ExtractMesh();
 
     /// Number of blocks re-meshed by the last ExtractMesh call.
@@ -124,11 +139,25 @@ class TsdfVolume {
     /// Parses Serialize's bytes. Untrusted input: returns nullopt and sets `*error` on failure.
     static std::optional<TsdfVolume> Deserialize(std::string_view bytes, std::string* error);
 
+    /// Keeps only Serialize's lossless bytes (and Stats' sizes): the grids and the mesh cache are
+    /// freed. Reading a packed volume (Query, Stats, ExtractMesh, SameVoxels, Serialize, Clone,
+    /// FuseVoxels as the source) decodes a temporary copy and leaves it packed; writing into it
+    /// (Integrate, FuseVoxels as the target) unpacks it for good first. Idempotent.
+    void Pack();
+
+    /// True from Pack (or DeserializePacked) until the next write.
+    bool packed() const;
+
+    /// Deserialize, then kept packed: the bytes are checked by a full decode, then only they stay.
+    static std::optional<TsdfVolume> DeserializePacked(std::string_view bytes, std::string* error);
+
     /// The OpenVDB state, opaque here (defined in tsdf_impl.h, private to tsdf*.cpp).
     struct Impl;
 
   private:
     explicit TsdfVolume(std::unique_ptr<Impl> impl);
+    /// The live state to write into (unpacks a packed volume).
+    Impl& Writable();
     std::unique_ptr<Impl> impl_;
 };
 

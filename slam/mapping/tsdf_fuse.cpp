@@ -9,7 +9,7 @@
 namespace certislam::slam {
 
 void FuseTsdfVoxels(TsdfVolume::Impl& im, const TsdfVolume::Impl& src,
-                    const Eigen::Isometry3d& T_this_other) {
+                    const Eigen::Isometry3d& T_this_other, int x_lo, int x_hi) {
     const double inv_voxel = 1.0 / im.config.voxel_size_m;
     const double src_voxel = src.config.voxel_size_m;
     const float max_sdf = static_cast<float>(im.config.truncation_m());
@@ -24,6 +24,7 @@ void FuseTsdfVoxels(TsdfVolume::Impl& im, const TsdfVolume::Impl& src,
         const openvdb::Coord ijk(static_cast<int>(std::lround(q.x())),
                                  static_cast<int>(std::lround(q.y())),
                                  static_cast<int>(std::lround(q.z())));
+        if (ijk.x() < x_lo || ijk.x() > x_hi) continue;
         const float w = *it;
         const float old_w = w_acc.getValue(ijk);
         const float new_w = old_w + w;

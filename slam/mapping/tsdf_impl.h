@@ -4,6 +4,7 @@
 #include <openvdb/openvdb.h>
 
 #include <cstdint>
+#include <string>
 #include <unordered_map>
 #include <unordered_set>
 #include <vector>
@@ -20,11 +21,15 @@ struct TsdfVolume::Impl {
     std::unordered_set<openvdb::Coord> dirty_blocks;  ///< leaf origins touched since last mesh
     std::unordered_map<openvdb::Coord, TsdfBlockMesh> mesh_cache;  ///< by leaf origin
     std::size_t last_remeshed = 0;  ///< blocks re-meshed by the last ExtractMesh
+    std::string packed;  ///< when packed: SerializeTsdf's bytes in a zstd frame (grids are null)
+    TsdfStats packed_stats;  ///< when packed: the sizes at packing, memory = bytes held
 
     /// Empty grids for `cfg` (calls openvdb::initialize() once per process).
     explicit Impl(const TsdfConfig& cfg);
     /// Marks every allocated leaf dirty (after deserialisation the cache is empty).
     void MarkAllDirty();
+    /// True when only the bytes are held (TsdfVolume::Pack).
+    bool IsPacked() const { return sdf == nullptr; }
 };
 
 }  // namespace certislam::slam

@@ -120,29 +120,31 @@ TriangleMesh ExtractTsdfMesh(TsdfVolume::Impl& im) {
     // Weld the blocks (sorted, so the output does not depend on hash order).
     std::vector<openvdb::Coord> origins;
     origins.reserve(im.mesh_cache.size());
-    std::size_t vertex_count = 0;
-    for (const auto& [o, m] : im.mesh_cache) {
-        origins.push_back(o);
-        vertex_count += m.vertices.size();
-    }
+    for (const auto& [o, m] : im.mesh_cache) origins.push_back(o);
     std::sort(origins.begin(), origins.end());
-    TriangleMesh mesh;
-    std::unordered_map<std::uint64_t, int> index_of;
-    index_of.reserve(vertex_count);
-    std::vector<int> global;
-    for (const openvdb::Coord& o : origins) {
-        const TsdfBlockMesh& m = im.mesh_cache.at(o);
-        global.resize(m.vertices.size());
-        for (std::size_t i = 0; i < m.vertices.size(); ++i) {
-            const auto [it, fresh] =
-                index_of.emplace(m.edge_keys[i], static_cast<int>(mesh.vertices.size()));
-            if (fresh) mesh.vertices.push_back(m.vertices[i]);
-            global[i] = it->second;
-        }
-        for (const auto& t : m.triangles)
-            mesh.triangles.emplace_back(global[t[0]], global[t[1]], global[t[2]]);
+    TsdfMeshWelder welder;
+    for (const openvdb::Coord& o : origins) welder.Add(im.mesh_cache.at(o));
+    return welder.Take();
+}
+
+void TsdfMeshWelder::Add(const TsdfBlockMesh& m) {
+    global_.resize(m.vertices.size());
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+        const auto [it, fresh] =
+            index_of_.emplace(m.edge_keys[i], static_cast<int>(mesh_.vertices.size()));
+        if (fresh) mesh_.vertices.push_back(m.vertices[i]);
+        global_[i] = it->second;
     }
-    return mesh;
+    for (const auto& t : m.triangles) {
+        mesh_.triangles.emplace_back(global_[t[0]], global_[t[1]], global_[t[2]]);
+    }
+}
+
+TriangleMesh TsdfMeshWelder::Take() {
+    TriangleMesh out = std::move(mesh_);
+    mesh_ = {};
+    index_of_.clear();
+    return out;
 }
 
 }  // namespace certislam::slam

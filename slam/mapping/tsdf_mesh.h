@@ -5,6 +5,7 @@
 #include <openvdb/openvdb.h>
 
 #include <cstdint>
+#include <unordered_map>
 #include <vector>
 
 #include "slam/mapping/mesh.h"
@@ -22,6 +23,21 @@ struct TsdfBlockMesh {
 
 /// Marching cubes over one leaf block of `impl` at `origin`.
 TsdfBlockMesh MeshBlock(const TsdfVolume::Impl& impl, const openvdb::Coord& origin);
+
+/// Welds block meshes, given in increasing origin order, into one indexed mesh (a vertex on a grid
+/// edge two blocks share is kept once), so a volume meshed in pieces gives ExtractTsdfMesh's mesh.
+class TsdfMeshWelder {
+  public:
+    /// Appends the mesh of the next block.
+    void Add(const TsdfBlockMesh& block);
+    /// The welded mesh so far (the welder is left empty).
+    TriangleMesh Take();
+
+  private:
+    TriangleMesh mesh_;
+    std::unordered_map<std::uint64_t, int> index_of_;  // edge key -> vertex index
+    std::vector<int> global_;                          // block vertex -> mesh vertex
+};
 
 /// Re-meshes the blocks of `impl` touched since the last call (and their neighbours), updates
 /// its mesh cache and returns the welded mesh of every cached block (TsdfVolume::ExtractMesh).

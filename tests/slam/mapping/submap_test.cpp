@@ -185,12 +185,41 @@ TEST(TsdfMap, FusesTwoRobotsSubmapsIntoOneFrame) {
     EXPECT_GT(near_plus_x, 20);   // seen by robot 1 only
 }
 
+// Fusing and meshing slab by slab gives exactly the mesh of the whole fused volume, whatever
+// the slab width (here down to one block, so blocks, cubes and welds cross slab borders).
+TEST(TsdfMap, FusedMeshBySlabsEqualsTheMeshOfTheFusedVolume) {
+    const std::vector<Box> scene = testing::GroundAndCube(kGround);
+    TsdfMapConfig cfg;
+    cfg.submap_max_keyframes = 2;
+    const auto poses = Drive();
+    TsdfMap map = BuildMap(0, cfg, poses, poses);
+    const TsdfMap peer = BuildMap(1, cfg, {Pose(9, -1, 0, 2.0)}, {Pose(9, -1, 0, 2.0)});
+    std::string error;
+    map.AddSubmap(*DeserializeSubmap(SerializeSubmap(peer.submaps()[0]), &error));
+    ASSERT_GT(map.submaps().size(), 2u);
+    TsdfConfig fused_config;
+    fused_config.voxel_size_m = 0.15;  // not the submaps' voxel: resampled
+    const TriangleMesh whole = map.Fuse(fused_config).ExtractMesh();
+    ASSERT_GT(whole.triangles.size(), 1000u);
+    std::vector<TsdfVolume::FusePart> parts;
+    for (const Submap& s : map.submaps()) parts.push_back({&s.volume, s.T_world_submap});
+    for (const int blocks : {1, 3, 1000}) {
+        const TriangleMesh slabs = blocks == 1000
+                                       ? map.FusedMesh(fused_config)
+                                       : TsdfVolume::FuseAndMesh(parts, fused_config, blocks);
+        ASSERT_EQ(slabs.vertices.size(), whole.vertices.size()) << blocks;
+        EXPECT_EQ(slabs.triangles, whole.triangles) << blocks;
+        EXPECT_EQ(MaxVertexDistance(slabs, whole), 0.0) << blocks;
+    }
+}
+
 TEST(TsdfMap, KeepsWithinItsMemoryBudgetByCoarseningThenSkipping) {
     const std::vector<Box> scene = testing::GroundAndCube(kGround);
     TsdfMapConfig free_config;
     free_config.memory_budget_mb = 0.0;    // no budget
     free_config.submap_max_keyframes = 1;  // every scan its own volume: memory grows per scan
     free_config.tsdf.voxel_size_m = 0.1;
+    free_config.pack_closed_submaps = false;  // live volumes: packed ones are the next test's
     const auto poses = Drive();
     TsdfMap free(0, free_config);
     for (std::size_t i = 0; i < poses.size(); ++i) {
@@ -229,6 +258,62 @@ TEST(TsdfMap, KeepsWithinItsMemoryBudgetByCoarseningThenSkipping) {
     TsdfMapConfig bad;
     bad.memory_budget_mb = -1.0;
     EXPECT_THROW(TsdfMap(0, bad), std::invalid_argument);
+}
+
+// Closed and received submaps kept as their compressed bytes give the same voxels, meshes and
+// fused volume as live ones, and the budget counts the bytes held.
+TEST(TsdfMap, PackedSubmapsGiveTheSameMapAndCountTheirBytes) {
+    const std::vector<Box> scene = testing::GroundAndCube(kGround);
+    TsdfMapConfig live_config;
+    live_config.submap_max_keyframes = 3;  // 8 scans: 3 submaps, the first two closed
+    live_config.pack_closed_submaps = false;
+    TsdfMapConfig packed_config = live_config;
+    packed_config.pack_closed_submaps = true;
+    const auto poses = Drive();
+    const TsdfMap live = BuildMap(0, live_config, poses, poses);
+    TsdfMap packed = BuildMap(0, packed_config, poses, poses);
+    ASSERT_EQ(packed.submaps().size(), 3u);
+    std::size_t held = 0, live_bytes = 0;
+    for (std::size_t i = 0; i < 3; ++i) {
+        const TsdfVolume& v = packed.submaps()[i].volume;
+        EXPECT_EQ(v.packed(), i < 2) << "submap " << i;  // the active one stays live
+        EXPECT_TRUE(v.SameVoxels(live.submaps()[i].volume)) << "submap " << i;
+        EXPECT_EQ(v.Stats().active_voxels, live.submaps()[i].volume.Stats().active_voxels);
+        held += v.Stats().memory_bytes;
+        if (i < 2) {
+            EXPECT_LT(v.Stats().memory_bytes, v.Serialize().size());  // zstd on top
+        }
+        live_bytes += live.submaps()[i].volume.Stats().memory_bytes;
+    }
+    EXPECT_EQ(packed.Budget().memory_bytes, held);
+    EXPECT_LT(held, live_bytes);
+
+    // A peer's submap arrives packed and stays packed through meshing and fusion.
+    TsdfMap peer(1, packed_config);
+    peer.Insert(0, Pose(9, -1, 0, 2.0), ScanBoxes(scene, Pose(9, -1, 0, 2.0)));
+    std::string error;
+    auto received = DeserializeSubmap(SerializeSubmap(peer.submaps().front()), &error, true);
+    ASSERT_TRUE(received.has_value()) << error;
+    EXPECT_TRUE(received->volume.packed());
+    EXPECT_TRUE(received->volume.SameVoxels(peer.submaps().front().volume));
+    TsdfMap live_team = BuildMap(0, live_config, poses, poses);
+    live_team.AddSubmap(*DeserializeSubmap(SerializeSubmap(peer.submaps().front()), &error));
+    packed.AddSubmap(std::move(*received));
+
+    const TriangleMesh a = live_team.ExtractMesh(), b = packed.ExtractMesh();
+    ASSERT_EQ(a.triangles, b.triangles);
+    EXPECT_EQ(MaxVertexDistance(a, b), 0.0);
+    EXPECT_TRUE(live_team.Fuse(TsdfConfig{}).SameVoxels(packed.Fuse(TsdfConfig{})));
+    for (const Submap& s : packed.submaps())
+        EXPECT_EQ(s.volume.packed(), s.id.robot == 1 || s.id.index < 2);
+    // Writing into a packed volume unpacks it; its voxels are the same as before.
+    TsdfVolume v = packed.submaps().front().volume.Clone();
+    ASSERT_TRUE(v.packed());
+    v.Integrate(ScanBoxes(scene, poses[0]), Eigen::Isometry3d::Identity());
+    EXPECT_FALSE(v.packed());
+    TsdfVolume w = live.submaps().front().volume.Clone();
+    w.Integrate(ScanBoxes(scene, poses[0]), Eigen::Isometry3d::Identity());
+    EXPECT_TRUE(v.SameVoxels(w));
 }
 
 }  // namespace

@@ -74,6 +74,7 @@ PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs
     PoseGraphTeamResult out = SummariseNodes(views);
     out.done = done;
     out.seconds = seconds;
+    out.cost_offset = slam::CostOffset(graphs);
     for (auto& node : nodes) node->Stop();
     return out;
 }

@@ -16,9 +16,9 @@ namespace {
 using certislam::testing::Shell;
 using certislam::testing::ShellResult;
 
-/// Distributed vs in-process cost of the file as written: the wire carries unit quaternions, the
-/// files' are within 1e-5 of unit norm (same measurements: 1e-6, test_actors_pose_graph_team).
-constexpr double kRelCost = 1e-5;
+/// Distributed vs in-process cost of the file as written (measured rotations that are not unit
+/// quaternions' cross the wire as matrices: the same problem).
+constexpr double kRelCost = 1e-6;
 
 std::string Data(const std::string& name) {
     return std::string(CERTISLAM_DATA_DIR) + "/g2o/" + name;
@@ -246,7 +246,7 @@ TEST(SolveDistributed, ParallelEdgesCertifyTheFilesOptimumWithTheFilesCost) {
         ASSERT_FALSE(team.is_discarded());
         EXPECT_EQ(team["verdict"], "certified") << transport;
         EXPECT_GT(team["cost_offset"].get<double>(), 0.0) << transport;
-        EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), 1e-6)
+        EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), kRelCost)
             << transport << ": " << team["cost"] << " vs " << central["cost"];
     }
 }

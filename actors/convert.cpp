@@ -7,6 +7,7 @@
 #include <map>
 #include <mutex>
 
+#include "slam/backend/rounding.h"
 #include "slam/frontend/scan_context_compression.h"
 #include "slam/io/cloud_compression.h"
 
@@ -14,6 +15,8 @@ namespace certislam::actors {
 namespace {
 
 constexpr double kQuaternionNormTolerance = 1e-3;
+/// A measured rotation further than this (Frobenius) from its quaternion's goes as a matrix.
+constexpr double kRotationAsMatrix = 1e-14;
 constexpr std::uint32_t kPointStride = sizeof(float) * 3;
 static_assert(sizeof(Eigen::Vector3f) == kPointStride, "clouds must be packed float32 xyz");
 
@@ -264,11 +267,36 @@ std::optional<slam::ScanContext> FromProto(const v1::ScanContextDescriptor& desc
     return out;
 }
 
+namespace {
+
+/// The rotation_3x3 of a loop (empty: identity, unused); nullopt when it has not 9 finite values
+/// or is larger than a rotation of a quaternion within the norm tolerance (||R~||_F <= 3^0.5 q^2).
+std::optional<Eigen::Matrix3d> MeasuredRotation(const v1::LoopClosure& loop) {
+    if (loop.rotation_3x3_size() == 0) return Eigen::Matrix3d::Identity();
+    if (loop.rotation_3x3_size() != 9 || !AllFinite(loop.rotation_3x3())) return std::nullopt;
+    const Eigen::Matrix3d R =
+        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(loop.rotation_3x3().data());
+    const double largest = std::sqrt(3.0) * std::pow(1.0 + kQuaternionNormTolerance, 2);
+    if (!(R.norm() <= largest)) return std::nullopt;
+    return R;
+}
+
+}  // namespace
+
 v1::LoopClosure ToProto(const slam::LoopClosure& loop) {
     v1::LoopClosure out;
     *out.mutable_pose_a() = ToProto(loop.a);
     *out.mutable_pose_b() = ToProto(loop.b);
-    *out.mutable_t_a_b() = ToProto(loop.T_a_b);
+    // The pose's quaternion is the nearest rotation's; a measured R~ that is not it goes beside.
+    Eigen::Isometry3d T = loop.T_a_b;
+    T.linear() = slam::ProjectToRotation(loop.T_a_b.linear());
+    *out.mutable_t_a_b() = ToProto(T);
+    const Eigen::Quaterniond q(out.t_a_b().qw(), out.t_a_b().qx(), out.t_a_b().qy(),
+                               out.t_a_b().qz());
+    if ((q.toRotationMatrix() - loop.T_a_b.linear()).norm() > kRotationAsMatrix) {
+        const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> R = loop.T_a_b.linear();
+        out.mutable_rotation_3x3()->Add(R.data(), R.data() + 9);
+    }
     out.mutable_information()->set_kappa(loop.kappa);
     out.mutable_information()->set_tau(loop.tau);
     out.set_fitness_rmse_m(static_cast<float>(std::sqrt(std::max(0.0, loop.fitness))));
@@ -285,10 +313,13 @@ std::optional<slam::LoopClosure> FromProto(const v1::LoopClosure& loop) {
     if (!(kappa > 0.0) || !(tau > 0.0) || !std::isfinite(kappa) || !std::isfinite(tau)) {
         return std::nullopt;
     }
+    const auto R = MeasuredRotation(loop);
+    if (!R) return std::nullopt;
     slam::LoopClosure out;
     out.a = *a;
     out.b = *b;
     out.T_a_b = *T;
+    if (loop.rotation_3x3_size() > 0) out.T_a_b.linear() = *R;
     out.kappa = kappa;
     out.tau = tau;
     out.fitness = static_cast<double>(loop.fitness_rmse_m()) * loop.fitness_rmse_m();

@@ -88,6 +88,7 @@ PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs
     out.seconds = seconds;
     out.seconds_to_converged = converged;
     out.seconds_to_certified = certified;
+    out.cost_offset = slam::CostOffset(graphs);
     for (auto& node : nodes) node->Stop();
     return out;
 }

@@ -43,6 +43,9 @@ struct PoseGraphTeamResult {
     /// largest |z| and the largest tilt of a pose's z axis
     double out_of_plane_m = 0.0;
     double out_of_plane_rad = 0.0;
+    /// The file's cost minus the team's for every X (merged parallel edges, slam::CostOffset):
+    /// the report's objective and lower bound plus this are the file's.
+    double cost_offset = 0.0;
 };
 
 /// What `nodes` (the anchor first) have done so far: counters summed or maxed over them, the

@@ -47,6 +47,7 @@ int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
     }
     actors::PoseGraphTeamResult result = actors::SummariseNodes({&node});
     result.done = done;
+    result.cost_offset = slam::CostOffset(graphs);
     result.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     node.Stop();

@@ -46,12 +46,15 @@ nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots,
                               const std::string& transport) {
     const v1::CertificateReport report = r.report.value_or(v1::CertificateReport{});
     const bool certified = r.done && report.verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
+    // The file's cost: the team's plus the constant of its merged parallel edges (none heard: 0).
+    const double cost = r.report ? report.objective() + r.cost_offset : 0.0;
     nlohmann::json j = {{"schema_version", kSchemaVersion},
                         {"method", "rbcd"},
                         {"path", "distributed"},
                         {"transport", transport},
-                        {"objective", report.objective()},
-                        {"cost", report.objective()},
+                        {"objective", cost},
+                        {"cost", cost},
+                        {"cost_offset", r.cost_offset},
                         {"certified", certified},
                         {"verdict", VerdictName(report.verdict())},
                         {"certificate_path", CertificatePathName(report.path())},

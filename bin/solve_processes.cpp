@@ -213,6 +213,7 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
     r.solver_mode = sync ? "synchronous" : "asynchronous";
     const nlohmann::json& anchor = reports.front();
     const int id = Field<int>(anchor, "robot", -1);
+    r.cost_offset = Field<double>(anchor, "cost_offset", id);
     r.certificate_rounds = Field<int>(anchor, "certificate_rounds", id);
     r.lanczos_steps = Field<std::uint64_t>(anchor, "lanczos_steps", id);
     r.rank = Field<int>(anchor, "rank", id);

@@ -30,6 +30,14 @@ Eigen::MatrixXd Lift(const Eigen::Isometry3d& T, int r) {
     return X;
 }
 
+/// T with its rotation projected onto SO(3): a prediction through a loop whose measured R~ is not
+/// a rotation (merged parallel edges, slam::MergeParallelEdges) stays a pose.
+Eigen::Isometry3d Rigid(const Eigen::Isometry3d& T) {
+    Eigen::Isometry3d out = T;
+    out.linear() = slam::ProjectToRotation(T.linear());
+    return out;
+}
+
 bool SameEnds(const slam::LoopClosure& x, const slam::LoopClosure& y) {
     return x.a == y.a && x.b == y.b;
 }
@@ -103,8 +111,10 @@ struct SolverState::Impl {
         if (auto it = nbr.find(id); it != nbr.end()) return AtRank(it->second, rank);
         for (const auto& l : loops) {
             if (!Active(l)) continue;
-            if (l.b == id && Own(l.a)) return LiftedTimes(OwnPose(l.a.index), l.T_a_b);
-            if (l.a == id && Own(l.b)) return LiftedTimes(OwnPose(l.b.index), l.T_a_b.inverse());
+            if (l.b == id && Own(l.a)) return LiftedTimes(OwnPose(l.a.index), Rigid(l.T_a_b));
+            if (l.a == id && Own(l.b)) {
+                return LiftedTimes(OwnPose(l.b.index), Rigid(l.T_a_b).inverse());
+            }
         }
         return Lift(Eigen::Isometry3d::Identity(), rank);
     }
@@ -117,7 +127,8 @@ struct SolverState::Impl {
             const slam::PoseId other = Own(l.a) ? l.b : l.a;
             if (other.robot >= frame_robot || !nbr.count(other)) continue;
             const int i = Own(l.a) ? l.a.index : l.b.index;
-            const Eigen::Isometry3d T_other_own = Own(l.a) ? l.T_a_b.inverse() : l.T_a_b;
+            const Eigen::Isometry3d T_other_own =
+                Own(l.a) ? Rigid(l.T_a_b).inverse() : Rigid(l.T_a_b);
             const Eigen::MatrixXd X_i = LiftedTimes(AtRank(nbr.at(other), rank), T_other_own);
             Eigen::MatrixXd moved(X.rows(), X.cols());
             for (int k = 0; k < n(); ++k) {

@@ -49,18 +49,6 @@ void CheckInput(const PoseGraph& graph, const Partition& partition) {
             throw std::invalid_argument("robot " + std::to_string(k) + " owns no pose");
         }
     }
-    std::map<std::pair<int, int>, size_t> seen;
-    for (size_t k = 0; k < graph.edges.size(); ++k) {
-        const auto& e = graph.edges[k];
-        const auto ends = std::minmax(e.i, e.j);
-        const auto [it, fresh] = seen.emplace(std::pair{ends.first, ends.second}, k);
-        if (!fresh) {
-            throw std::invalid_argument(
-                "edges " + std::to_string(it->second) + " and " + std::to_string(k) +
-                " (0-based, file order) both join poses " + std::to_string(e.i) + " and " +
-                std::to_string(e.j) + ": a robot's solver keeps one edge per pose pair");
-        }
-    }
 }
 
 /// [A 0; 0 1] for a d x d block A (d <= 3).
@@ -71,6 +59,55 @@ Eigen::Matrix3d Embed(const Eigen::MatrixXd& A) {
 }
 
 }  // namespace
+
+MergedGraph MergeParallelEdges(const PoseGraph& graph) {
+    MergedGraph out;
+    out.graph = graph;
+    out.graph.edges.clear();
+    std::map<std::pair<int, int>, size_t> first;  // (tail, head) -> merged edge
+    std::vector<std::vector<size_t>> groups;
+    for (size_t k = 0; k < graph.edges.size(); ++k) {
+        const auto& e = graph.edges[k];
+        const auto [it, fresh] = first.emplace(std::pair{e.i, e.j}, groups.size());
+        if (fresh) {
+            groups.emplace_back();
+        } else {
+            ++out.merged;
+        }
+        groups[it->second].push_back(k);
+    }
+    for (const auto& group : groups) {
+        RelativePoseMeasurement m = graph.edges[group.front()];
+        if (group.size() > 1) {
+            m.R.setZero();
+            m.t.setZero();
+            m.kappa = m.tau = 0.0;
+            for (const size_t k : group) {
+                const auto& e = graph.edges[k];
+                m.kappa += e.kappa;
+                m.tau += e.tau;
+                m.R += e.kappa * e.R;
+                m.t += e.tau * e.t;
+            }
+            m.R /= m.kappa;
+            m.t /= m.tau;
+        }
+        // The constant as a sum of squares (exact to rounding, >= 0); the rotation terms have none.
+        double cost = 0.0;
+        for (const size_t k : group) {
+            cost += graph.edges[k].tau * (graph.edges[k].t - m.t).squaredNorm();
+        }
+        out.graph.edges.push_back(std::move(m));
+        out.cost.push_back(group.size() > 1 ? cost : 0.0);
+    }
+    return out;
+}
+
+double CostOffset(const std::vector<RobotGraph>& graphs) {
+    double sum = 0.0;
+    for (const auto& g : graphs) sum += g.cost_offset;
+    return sum;
+}
 
 PoseGraph LiftPlanar(const PoseGraph& graph) {
     if (graph.d != 2) return graph;
@@ -95,9 +132,11 @@ PoseGraph LiftPlanar(const PoseGraph& graph) {
 }
 
 std::vector<RobotGraph> SplitGraph(const PoseGraph& planar_or_3d, const Partition& partition) {
-    const PoseGraph graph = LiftPlanar(planar_or_3d);
-    CheckInput(graph, partition);
-    const std::vector<Eigen::Isometry3d> initial = InitialPoses(graph);
+    const PoseGraph lifted = LiftPlanar(planar_or_3d);
+    CheckInput(lifted, partition);
+    const std::vector<Eigen::Isometry3d> initial = InitialPoses(lifted);  // file's edges: rotations
+    const MergedGraph merged = MergeParallelEdges(lifted);
+    const PoseGraph& graph = merged.graph;
     std::vector<RobotGraph> out(partition.num_robots());
     const auto id = [&](int g) {
         const int robot = partition.RobotOf(g);
@@ -109,7 +148,8 @@ std::vector<RobotGraph> SplitGraph(const PoseGraph& planar_or_3d, const Partitio
             out[k].initial.push_back(initial[g]);
         }
     }
-    for (const auto& e : graph.edges) {
+    for (size_t k = 0; k < graph.edges.size(); ++k) {
+        const auto& e = graph.edges[k];
         LoopClosure l;
         l.a = id(e.i);
         l.b = id(e.j);
@@ -117,6 +157,7 @@ std::vector<RobotGraph> SplitGraph(const PoseGraph& planar_or_3d, const Partitio
         l.kappa = e.kappa;
         l.tau = e.tau;
         l.sc_distance = 0.0;
+        out[l.a.robot].cost_offset += merged.cost[k];
         if (!l.inter_robot()) {
             out[l.a.robot].intra.push_back(l);
         } else {

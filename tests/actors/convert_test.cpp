@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <random>
 
 #include "certislam/v1/control.pb.h"
@@ -169,6 +171,38 @@ TEST(Convert, LoopClosureRoundTripsAndRejectsBadWeights) {
     EXPECT_FALSE(FromProto(parsed).has_value());
     v1::LoopClosure empty;
     EXPECT_FALSE(FromProto(empty).has_value());
+}
+
+/// A measured rotation that is not a rotation (merged parallel edges: a weighted mean of two)
+/// crosses the wire exactly; a rotation goes as its quaternion alone; malformed matrices are
+/// dropped.
+TEST(Convert, LoopClosureCarriesAMeasuredRotationThatIsNotOneExactly) {
+    slam::LoopClosure loop;
+    loop.a = {0, 3};
+    loop.b = {2, 7};
+    loop.T_a_b.linear() = 0.75 * Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()).matrix() +
+                          0.25 * Eigen::AngleAxisd(-0.9, Eigen::Vector3d::UnitY()).matrix();
+    loop.T_a_b.translation() = Eigen::Vector3d(-1, 0.5, 2);
+    const v1::LoopClosure proto = ToProto(loop);
+    ASSERT_EQ(proto.rotation_3x3_size(), 9);
+    const auto back = FromProto(proto);
+    ASSERT_TRUE(back.has_value());
+    EXPECT_EQ(back->T_a_b.linear(), loop.T_a_b.linear());
+    EXPECT_EQ(back->T_a_b.translation(), loop.T_a_b.translation());
+
+    slam::LoopClosure rigid = loop;
+    rigid.T_a_b.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()).matrix();
+    EXPECT_EQ(ToProto(rigid).rotation_3x3_size(), 0);
+
+    v1::LoopClosure short_matrix = proto;
+    short_matrix.mutable_rotation_3x3()->RemoveLast();
+    EXPECT_FALSE(FromProto(short_matrix).has_value());
+    v1::LoopClosure not_finite = proto;
+    not_finite.set_rotation_3x3(4, std::nan(""));
+    EXPECT_FALSE(FromProto(not_finite).has_value());
+    v1::LoopClosure huge = proto;
+    huge.set_rotation_3x3(0, 50.0);
+    EXPECT_FALSE(FromProto(huge).has_value());
 }
 
 TEST(Convert, PublicPosesRoundTripAndRejectCountMismatch) {

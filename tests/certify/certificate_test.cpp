@@ -14,6 +14,8 @@
 
 #include "certify/min_eigenpair.h"
 #include "slam/backend/connection_laplacian.h"
+#include "slam/backend/stiefel.h"
+#include "slam/core/graph_split.h"
 #include "tests/certify/test_graphs.h"
 
 namespace certislam::certify {
@@ -276,6 +278,43 @@ TEST_P(TwoPoseByDimension, RefinedBoundEtaKeepsTheShiftedMatrixPsd) {
     }
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> dense(shifted);
     EXPECT_GE(dense.eigenvalues()(0), -kDenseMatchTolerance * result.q_norm);
+}
+
+/// Parallel edges merged (slam::MergeParallelEdges) change Q by the tau t t^T terms of the tails'
+/// rotation blocks only, which Lambda(X) takes up: at any X on the manifold, S is the file's and
+/// f(X) is the file's minus the merge's constant (what lets a split team certify the file).
+TEST(Certificate, MergedParallelEdgesLeaveTheCertificateMatrixAsTheFilesIs) {
+    Eigen::MatrixXd truth;
+    slam::PoseGraph file = testing::NoisySphere(3, 6, 0.05, 0.1, 7, &truth);
+    std::mt19937 rng(11);
+    const size_t m = file.edges.size();
+    for (size_t k = 0; k < m; k += 3) {  // a second, different measurement of every third edge
+        slam::RelativePoseMeasurement e = file.edges[k];
+        e.R = e.R * testing::RandomRotation(3, 0.2, rng);
+        e.t += Eigen::Vector3d(0.3, -0.2, 0.1);
+        e.kappa *= 0.5;
+        e.tau *= 2.0;
+        file.edges.push_back(e);
+    }
+    const slam::MergedGraph merged = slam::MergeParallelEdges(file);
+    ASSERT_GT(merged.merged, 0);
+    double offset = 0.0;
+    for (const double c : merged.cost) offset += c;
+    const int d = 3, r = 5;
+    const Eigen::MatrixXd X = slam::ProjectToManifold(
+        Eigen::MatrixXd::Random(r, (d + 1) * file.n) * 3.0, d);  // fixed seed: Eigen's rand
+    const auto Q_file = slam::ConnectionLaplacian(file);
+    const auto Q_merged = slam::ConnectionLaplacian(merged.graph);
+    const Eigen::MatrixXd S_file =
+        Eigen::MatrixXd(CertificateMatrix(Q_file, LambdaBlocks(Q_file, X, d), d));
+    const Eigen::MatrixXd S_merged =
+        Eigen::MatrixXd(CertificateMatrix(Q_merged, LambdaBlocks(Q_merged, X, d), d));
+    EXPECT_GT((Eigen::MatrixXd(Q_file) - Eigen::MatrixXd(Q_merged)).norm(), 1.0);
+    EXPECT_LE((S_file - S_merged).norm(), kDenseMatchTolerance * S_file.norm());
+    const double f_file = (X * Q_file * X.transpose()).trace();
+    const double f_merged = (X * Q_merged * X.transpose()).trace();
+    EXPECT_GT(offset, 0.0);
+    EXPECT_NEAR(f_file, f_merged + offset, kCostTolerance * f_file);
 }
 
 TEST(CertificateConfig, RejectsBadValuesNamingTheField) {

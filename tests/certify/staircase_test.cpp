@@ -9,6 +9,7 @@
 
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
+#include "slam/core/graph_split.h"
 #include "slam/io/g2o_io.h"
 #include "tests/certify/test_graphs.h"
 
@@ -91,6 +92,25 @@ TEST_P(RealData, CertifiedAtPublishedOptimum) {
     EXPECT_GE(result.certificate.objective, file.f_star * (1.0 - kSameProblem));
     EXPECT_GE(result.certificate.lambda_min, -result.certificate.eta);
     EXPECT_LE(result.certificate.duality_gap, kRelativeGap * file.f_star);
+}
+
+/// cubicle's parallel edges merged as the robots hold them (slam::MergeParallelEdges): the
+/// merged graph certifies, and its optimum plus the merge's constant is the file's f*.
+TEST(MergedParallelEdges, CubicleCertifiedAtThePublishedOptimumPlusTheConstant) {
+    constexpr double kCubicleFStar = 717.134043271;  // data/g2o/README.md, f*(here)
+    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/cubicle.g2o");
+    ASSERT_TRUE(read.ok()) << read.error;
+    const slam::MergedGraph merged = slam::MergeParallelEdges(read.graph);
+    EXPECT_GT(merged.merged, 4000);
+    double offset = 0.0;
+    for (const double c : merged.cost) offset += c;
+    const slam::PoseGraph& graph = merged.graph;
+    const Eigen::MatrixXd X0 = slam::LiftToRank(slam::ChordalInitialization(graph), graph.d + 2);
+    const StaircaseResult result = SolveCertified(graph, slam::ContiguousPartition(graph.n, 1), X0);
+    ASSERT_EQ(result.status, StaircaseResult::Status::kCertified);
+    EXPECT_GT(offset, kRelativeGap * kCubicleFStar);  // without it the cost would be another
+    EXPECT_NEAR(result.certificate.objective + offset, kCubicleFStar, kRelativeGap * kCubicleFStar);
+    EXPECT_GE(result.certificate.lambda_min, -result.certificate.eta);
 }
 
 INSTANTIATE_TEST_SUITE_P(Files, RealData,

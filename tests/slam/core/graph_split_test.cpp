@@ -1,6 +1,6 @@
 // SplitGraph: a hand-built 3D graph split into robots keeps every edge once (intra, inter with
-// the tail's robot, shared with the head's), maps ids to robot-local indices, and refuses what a
-// robot's solver cannot hold; a planar graph is split as its lift into SE(3).
+// the tail's robot, shared with the head's), maps ids to robot-local indices, merges parallel
+// edges exactly and refuses bad partitions; a planar graph is split as its lift into SE(3).
 #include "slam/core/graph_split.h"
 
 #include <gtest/gtest.h>
@@ -66,12 +66,75 @@ TEST(SplitGraph, VertexGuessesAreUsedWhenTheGraphHasThem) {
     EXPECT_NEAR(robots[1].initial[1].translation().y(), 30.0, 1e-12);
 }
 
-TEST(SplitGraph, RefusesParallelEdgesAndBadPartitions) {
-    PoseGraph parallel = Chain();
-    parallel.edges.push_back(Edge(1, 0, -1.0));
-    EXPECT_THROW(SplitGraph(parallel, Partition{{0, 2, 5}}), std::invalid_argument);
+TEST(SplitGraph, RefusesBadPartitions) {
     EXPECT_THROW(SplitGraph(Chain(), Partition{{0, 2, 4}}), std::invalid_argument);
     EXPECT_THROW(SplitGraph(Chain(), Partition{{0, 2, 2, 5}}), std::invalid_argument);
+}
+
+/// MATH.md's objective with ||R_i R~||^2 counted as d (SE-Sync's Q, slam::ConnectionLaplacian).
+double Cost(const PoseGraph& g, const std::vector<Eigen::Isometry3d>& T) {
+    double f = 0.0;
+    for (const auto& e : g.edges) {
+        const Eigen::Matrix3d Ri = T[e.i].linear(), Rj = T[e.j].linear();
+        f += e.kappa * (6.0 - 2.0 * (Rj.transpose() * Ri * e.R).trace()) +
+             e.tau * (T[e.j].translation() - T[e.i].translation() - Ri * e.t).squaredNorm();
+    }
+    return f;
+}
+
+/// The chain with two more measurements of 1 -> 2 (other rotations and translations, other
+/// weights) and one of 2 -> 1.
+PoseGraph WithParallelEdges() {
+    PoseGraph g = Chain();
+    for (const double angle : {0.3, -0.5}) {
+        RelativePoseMeasurement e = Edge(1, 2, 1.0 + angle);
+        e.R = Eigen::AngleAxisd(angle, Eigen::Vector3d(1.0, 2.0, 3.0).normalized()).matrix();
+        e.t.y() = angle;
+        e.kappa = 5.0 - angle;
+        e.tau = 2.0 + angle;
+        g.edges.push_back(e);
+    }
+    g.edges.push_back(Edge(2, 1, -1.0));
+    return g;
+}
+
+TEST(MergeParallelEdges, SameCostAsTheFileUpToItsConstantAtAnyPoses) {
+    const PoseGraph file = WithParallelEdges();
+    const MergedGraph merged = MergeParallelEdges(file);
+    EXPECT_EQ(merged.merged, 2);
+    ASSERT_EQ(merged.graph.edges.size(), 6u);  // 1 -> 2 once; 2 -> 1 is another edge
+    EXPECT_EQ(merged.graph.edges[5].i, 2);
+    EXPECT_NEAR(merged.graph.edges[1].kappa, (2.0 + 1.0) + (5.0 - 0.3) + (5.0 + 0.5), 1e-12);
+    double offset = 0.0;
+    for (const double c : merged.cost) offset += c;
+    EXPECT_GT(offset, 0.1);  // the three translations differ
+    EXPECT_EQ(merged.cost[0], 0.0);
+    // Any poses: the rotation terms are linear in kappa R~, the translation terms differ by the
+    // constant alone.
+    for (int trial = 0; trial < 5; ++trial) {
+        std::vector<Eigen::Isometry3d> T(file.n);
+        for (int k = 0; k < file.n; ++k) {
+            const Eigen::Vector3d axis(std::sin(k + trial), std::cos(2.0 * k), 0.5 + trial);
+            T[k] = Eigen::Translation3d(Eigen::Vector3d(k, trial - 2.0 * k, 0.3 * k)) *
+                   Eigen::AngleAxisd(0.7 * k + trial, axis.normalized());
+        }
+        EXPECT_NEAR(Cost(file, T), Cost(merged.graph, T) + offset, 1e-9 * Cost(file, T));
+    }
+}
+
+TEST(SplitGraph, MergesParallelEdgesAndGivesTheTailItsConstant) {
+    const PoseGraph file = WithParallelEdges();
+    const MergedGraph merged = MergeParallelEdges(file);
+    const auto robots = SplitGraph(file, Partition{{0, 2, 5}});
+    ASSERT_EQ(robots[0].inter.size(), 1u);   // 1 -> 2, merged
+    EXPECT_EQ(robots[0].shared.size(), 2u);  // 2 -> 1 and 4 -> 0
+    EXPECT_NEAR(robots[0].inter[0].kappa, merged.graph.edges[1].kappa, 1e-12);
+    EXPECT_NEAR((robots[0].inter[0].T_a_b.linear() - merged.graph.edges[1].R).norm(), 0.0, 1e-12);
+    EXPECT_NEAR(robots[0].cost_offset, merged.cost[1], 1e-12);
+    EXPECT_EQ(robots[1].cost_offset, 0.0);
+    EXPECT_NEAR(CostOffset(robots), merged.cost[1], 1e-12);
+    // The chain's initial guess uses the file's first 1 -> 2 measurement, a rotation.
+    EXPECT_NEAR(robots[1].initial[0].translation().x(), 2.0, 1e-12);
 }
 
 }  // namespace

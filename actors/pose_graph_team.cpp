@@ -74,9 +74,10 @@ PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs
             })) {
             converged = since();
         }
-        const auto report = nodes.front()->Snapshot().report;
-        if (certified < 0.0 && report && report->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED) {
-            certified = since();
+        if (certified < 0.0) {  // a snapshot copies the trajectory: taken only until first seen
+            const auto report = nodes.front()->Snapshot().report;
+            if (report && report->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED)
+                certified = since();
         }
     }
     const double seconds = since();

@@ -87,7 +87,7 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
 
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
                                     double timeout_s, double voxel_m, bool distributed_certificate,
-                                    const ActorProgress& progress) {
+                                    const ActorProgress& progress, const CloudMaker& make_cloud) {
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
     std::vector<int> ids;
@@ -102,9 +102,12 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
     for (int r : ids) {
         auto next = std::make_shared<size_t>(0);
         const auto* keyframes = &robots[static_cast<size_t>(r)];
-        actors::KeyframeSource source = [keyframes, next]() -> std::optional<slam::Keyframe> {
+        actors::KeyframeSource source = [keyframes, next,
+                                         make_cloud]() -> std::optional<slam::Keyframe> {
             if (*next >= keyframes->size()) return std::nullopt;
-            return (*keyframes)[(*next)++];
+            slam::Keyframe kf = (*keyframes)[(*next)++];
+            if (!kf.cloud && make_cloud) kf.cloud = make_cloud(kf.robot, kf.index);
+            return kf;
         };
         nodes.push_back(std::make_unique<actors::RobotNode>(context, actors::InprocWiring(r, ids),
                                                             std::move(source), config));

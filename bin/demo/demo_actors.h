@@ -53,12 +53,17 @@ struct ActorMissionResult {
 /// Progress of the run: stage and fraction done in [0, 1].
 using ActorProgress = std::function<void(const std::string& stage, double fraction)>;
 
-/// Runs robots[k] (keyframes with clouds) through one RobotNode per robot over inproc until
-/// every node is done or `timeout_s` passes; every keyframe queries the loop matcher. The TSDF
-/// mappers run with voxels of `voxel_m` (0: no mapper, no mesh).
+/// The cloud of keyframe `index` of `robot`, made when the robot's ingest asks for it.
+using CloudMaker = std::function<slam::PointCloudPtr(int robot, int index)>;
+
+/// Runs robots[k] through one RobotNode per robot over inproc until every node is done or
+/// `timeout_s` passes; every keyframe queries the loop matcher. A keyframe without a cloud gets
+/// `make_cloud`'s on the robot's own ingest thread, so the robots' scans are made in parallel
+/// and while the team works. The TSDF mappers run with voxels of `voxel_m` (0: no mapper).
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
                                     double timeout_s, double voxel_m,
                                     bool distributed_certificate = true,
-                                    const ActorProgress& progress = {});
+                                    const ActorProgress& progress = {},
+                                    const CloudMaker& make_cloud = {});
 
 }  // namespace certislam::bin

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 
@@ -41,6 +42,7 @@ struct SimulatedTeam {
     std::vector<slam::Trajectory> ground_truth;         ///< T_team_sensor (robot 0's odom frame)
     std::vector<Eigen::Isometry3d> T_team_odom;         ///< each robot's true odometry frame
     slam::SimStreets streets;                           ///< where the tunnel is
+    std::shared_ptr<const slam::MissionGenerator> generator;  ///< makes the clouds
 };
 
 slam::SimScenario Scenario(const DemoOptions& options) {
@@ -51,10 +53,13 @@ slam::SimScenario Scenario(const DemoOptions& options) {
     return *scenario;
 }
 
+/// The team's keyframes and truth; clouds only `with_clouds` (else the actor graph's ingest makes
+/// them with team.generator, in parallel).
 SimulatedTeam Simulate(const slam::SimScenario& scenario, const DemoOptions& options,
-                       ProgressBar* bar) {
-    const slam::MissionGenerator generator(scenario.config);
+                       bool with_clouds, ProgressBar* bar) {
     SimulatedTeam team;
+    team.generator = std::make_shared<const slam::MissionGenerator>(scenario.config);
+    const slam::MissionGenerator& generator = *team.generator;
     team.streets = generator.streets();
     const auto keyframes = [&](int r) {
         const int n = generator.num_keyframes(r);
@@ -69,7 +74,9 @@ SimulatedTeam Simulate(const slam::SimScenario& scenario, const DemoOptions& opt
         team.ground_truth.emplace_back();
         team.T_team_odom.push_back(T_team_world * generator.T_world_odom(r));
         for (int i = 0; i < keyframes(r); ++i) {
-            auto kf = generator.Generate(r, i);
+            auto kf = with_clouds ? generator.Generate(r, i)
+                                  : slam::SimulatedKeyframe{generator.PoseOnly(r, i),
+                                                            generator.T_world_sensor_truth(r, i)};
             team.truth.back().push_back(kf.T_world_sensor_truth);
             team.ground_truth.back().push_back({static_cast<double>(kf.keyframe.stamp_ns) * 1e-9,
                                                 T_team_world * kf.T_world_sensor_truth});
@@ -263,9 +270,13 @@ std::string MissionText(const slam::SimScenario& scenario, const DemoOptions& op
 certify::MissionResult ActorPath(const DemoOptions& options, const SimulatedTeam& team,
                                  const certify::MissionConfig& config, ProgressBar* bar,
                                  ActorMissionResult* run, DemoReport* report) {
+    const std::shared_ptr<const slam::MissionGenerator> generator = team.generator;
     *run = RunThroughActors(
         team.robots, options.actors_timeout_s, options.voxel_m, options.distributed_certificate,
-        [&](const std::string& stage, double f) { bar->Update(stage, 0.25 + 0.5 * f); });
+        [&](const std::string& stage, double f) { bar->Update(stage, 0.25 + 0.5 * f); },
+        [generator](int robot, int index) {
+            return generator->Generate(robot, index).keyframe.cloud;
+        });
     report->timings["actor_graph"] = run->seconds;
     certify::MissionResult mission = BaselinesOnActorGraph(
         team.robots, *run, config,
@@ -281,14 +292,14 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     DemoReport report;
     ProgressBar bar(!options.quiet);
     const slam::SimScenario scenario = Scenario(options);
-    const SimulatedTeam team = Simulate(scenario, options, &bar);
+    const bool actors = options.actors && !options.ground_truth_loops;
+    const SimulatedTeam team = Simulate(scenario, options, /*with_clouds=*/!actors, &bar);
     report.scenario = scenario.name;
     report.mission = MissionText(scenario, options);
     report.timings["simulation"] = Since(start);
 
     certify::MissionConfig config;
     if (options.ground_truth_loops) config.loops.source = slam::LoopSource::kGroundTruth;
-    const bool actors = options.actors && !options.ground_truth_loops;
     report.pipeline = PipelineText(actors);
     report.certified_source = actors ? "actor graph" : "pipeline";
     std::optional<ActorMissionResult> run;

@@ -134,13 +134,17 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
         if (progress) progress("actor graph: fusing the mappers' submaps", 0.95);
         // Two publish periods: the last re-anchorings reach robot 0's mapper.
         std::this_thread::sleep_for(2 * config.mapper.publish_period);
+        const auto mesh_start = Clock::now();
         result.mesh = mapper->FusedMesh(voxel_m);
+        result.mesh_seconds = std::chrono::duration<double>(Clock::now() - mesh_start).count();
         result.submaps = mapper->Stats().own_submaps + mapper->Stats().peer_submaps;
         for (auto& node : nodes) {
             if (node->Mapper()) result.map_bytes_sent += node->Mapper()->Stats().submap_bytes_sent;
         }
     }
+    const auto stop_start = Clock::now();
     for (auto& node : nodes) node->Stop();
+    result.stop_seconds = std::chrono::duration<double>(Clock::now() - stop_start).count();
     return result;
 }
 

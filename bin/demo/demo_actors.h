@@ -47,7 +47,9 @@ struct ActorMissionResult {
     /// The team graph the solvers hold at the end: every robot's own edges (odometry and
     /// accepted loops, with their weights), as SolverSnapshot::edges gives them.
     std::vector<slam::LoopClosure> edges;
-    double seconds = 0.0;  ///< start to done
+    double seconds = 0.0;       ///< start to done
+    double mesh_seconds = 0.0;  ///< robot 0's mapper fusing every submap into the mesh
+    double stop_seconds = 0.0;  ///< stopping the robots' actors
 };
 
 /// Progress of the run: stage and fraction done in [0, 1].

@@ -278,6 +278,8 @@ certify::MissionResult ActorPath(const DemoOptions& options, const SimulatedTeam
             return generator->Generate(robot, index).keyframe.cloud;
         });
     report->timings["actor_graph"] = run->seconds;
+    report->timings["actor_graph_mesh"] = run->mesh_seconds;
+    report->timings["actor_graph_stop"] = run->stop_seconds;
     certify::MissionResult mission = BaselinesOnActorGraph(
         team.robots, *run, config,
         [&](const std::string& stage, double f) { bar->Update(stage, 0.75 + 0.15 * f); });
@@ -333,7 +335,9 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     report.timings["tsdf_mesh"] = Since(map_start);
     if (!options.out_dir.empty()) {
         bar.Update("writing files", 0.97);
+        const auto files_start = Clock::now();
         WriteFiles(options, team, mission, methods, plot, options.voxel_m > 0 ? &mesh : nullptr);
+        report.timings["files"] = Since(files_start);
         report.out_dir = options.out_dir;
     }
     report.seconds = Since(start);

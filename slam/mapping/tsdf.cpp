@@ -188,8 +188,8 @@ TsdfStats GridStats(const TsdfVolume::Impl& im) {
     return s;
 }
 
-// zstd over the blosc-compressed OpenVDB stream: its headers, masks and the blosc blocks
-// of a sparse band still compress about twofold (the mapper's wire payload does the same).
+// zstd over SerializeTsdf's voxels (masks and byte-planed floats compress about twofold; the
+// mapper's wire payload does the same).
 constexpr int kPackZstdLevel = 3;
 
 std::string ZstdPack(const std::string& bytes) {

@@ -1,7 +1,15 @@
-// A TSDF's lossless compressed bytes (OpenVDB stream, blosc) and voxel-exact comparison
+// A TSDF's lossless bytes in a checked voxel format of our own, and voxel-exact comparison
 // (private to tsdf*.cpp: TsdfVolume::Serialize, Deserialize and SameVoxels call them).
+//
+// Layout, little-endian: an 80-byte header (magic "CSTSDF03", the TsdfConfig, the length of
+// the rest), then the leaf count L (uint64), L leaf origins (3 x int32, multiples of 8), L
+// active masks (8 x uint64; bit i of word w is voxel 64 w + i of the 8^3 leaf, x-major), then
+// the distances and then the weights of the A active voxels in leaf and mask order (A float32
+// each, stored byte-plane by byte-plane). Inactive voxels hold the backgrounds.
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -10,14 +18,24 @@
 
 namespace certislam::slam {
 
+inline constexpr std::size_t kTsdfHeaderBytes = 80;  ///< the fixed header
+inline constexpr std::size_t kTsdfMaskWords = 8;     ///< 64-bit words of a leaf's active mask
+/// A leaf's least bytes: origin, mask and the two values of its (at least one) active voxel.
+inline constexpr std::size_t kTsdfMinLeafBytes = 12 + 8 * kTsdfMaskWords + 8;
+/// Leaf origins beyond this many voxels from the volume's origin are refused (2^24: 168 km at
+/// the smallest voxel, 0.01 m).
+inline constexpr std::int32_t kTsdfMaxOriginVoxels = 1 << 24;
+
 /// True when both hold the same voxels with bit-identical values and settings.
 bool SameTsdfVoxels(const TsdfVolume::Impl& a, const TsdfVolume::Impl& b);
 
-/// The grids and settings of `impl` as bytes: a fixed little-endian header, then the grids.
+/// The grids and settings of `impl` as bytes (the layout above).
 std::string SerializeTsdf(const TsdfVolume::Impl& impl);
 
-/// Parses SerializeTsdf's bytes. Untrusted input: returns nullptr and sets `*error` (when not
-/// null) on failure.
+/// Parses SerializeTsdf's bytes. Untrusted input: every count is checked against the bytes left
+/// before allocating, every value (finite; weight in [0, max_weight]) and origin (aligned,
+/// bounded, unique; an active voxel in every leaf) before building; returns nullptr and sets
+/// `*error` (when not null) to the byte offset and the rule on failure.
 std::unique_ptr<TsdfVolume::Impl> DeserializeTsdf(std::string_view bytes, std::string* error);
 
 }  // namespace certislam::slam

@@ -144,11 +144,52 @@ std::string At(std::size_t offset, const std::string& rule) {
     return "byte offset " + std::to_string(offset) + ": " + rule;
 }
 
+// Distinct values of `origins` rounded down to multiples of `node_voxels` (a power of two).
+std::size_t DistinctNodes(const std::vector<openvdb::Coord>& origins, std::int32_t node_voxels) {
+    std::vector<openvdb::Coord> nodes;
+    nodes.reserve(origins.size());
+    for (const openvdb::Coord& o : origins) nodes.push_back(o & ~(node_voxels - 1));
+    std::sort(nodes.begin(), nodes.end());
+    return std::size_t(std::unique(nodes.begin(), nodes.end()) - nodes.begin());
+}
+
+// Unique origins whose tree nodes stay few: OpenVDB allocates a 128^3-voxel node (33 KiB) and a
+// 4096^3-voxel node (264 KiB) above each scattered leaf. A mapped surface clusters its leaves
+// (tens per 128^3 node, the 8 octant nodes at the top), so hostile bytes cannot make a few bytes
+// a leaf cost hundreds of KiB. Returns "" or the refusal at `at`, the first origin's offset.
+std::string CheckOriginSet(const std::vector<openvdb::Coord>& origins, std::size_t at) {
+    std::vector<openvdb::Coord> sorted = origins;
+    std::sort(sorted.begin(), sorted.end());
+    const auto dup = std::adjacent_find(sorted.begin(), sorted.end());
+    if (dup != sorted.end()) {  // named at its second occurrence
+        const auto first = std::find(origins.begin(), origins.end(), *dup);
+        const auto l = std::size_t(std::find(first + 1, origins.end(), *dup) - origins.begin());
+        return At(at + 12 * l, "duplicate leaf origin (" + std::to_string(dup->x()) + ", " +
+                                   std::to_string(dup->y()) + ", " + std::to_string(dup->z()) +
+                                   ")");
+    }
+    const std::size_t n = origins.size();
+    for (const auto& [voxels, per] :
+         {std::pair<std::int32_t, std::size_t>{128, kTsdfLeavesPerMidNode},
+          {4096, kTsdfLeavesPerTopNode}}) {
+        const std::size_t nodes = DistinctNodes(origins, voxels);
+        if (nodes > 8 + n / per) {
+            return At(at, std::to_string(n) + " leaves spread over " + std::to_string(nodes) +
+                              " tree nodes of " + std::to_string(voxels) +
+                              "^3 voxels: at most 8 + " + std::to_string(n) + "/" +
+                              std::to_string(per));
+        }
+    }
+    return "";
+}
+
 // The leaves' origins and active masks, checked: each origin a multiple of the leaf size, within
-// kTsdfMaxOriginVoxels and unique; each mask with an active voxel. Returns "" or the refusal.
+// kTsdfMaxOriginVoxels (CheckOriginSet's rules on the set); each mask with an active voxel.
+// Returns "" or the refusal.
 std::string ReadLeaves(Reader& in, std::size_t count, std::vector<openvdb::Coord>* origins,
                        std::vector<Mask>* masks, std::size_t* active) {
     origins->reserve(count);
+    const std::size_t origins_at = in.offset();
     for (std::size_t l = 0; l < count; ++l) {
         const std::size_t at = in.offset();
         std::array<std::int32_t, 3> o;
@@ -164,16 +205,7 @@ std::string ReadLeaves(Reader& in, std::size_t count, std::vector<openvdb::Coord
         }
         origins->emplace_back(o[0], o[1], o[2]);
     }
-    std::vector<openvdb::Coord> sorted = *origins;
-    std::sort(sorted.begin(), sorted.end());
-    const auto dup = std::adjacent_find(sorted.begin(), sorted.end());
-    if (dup != sorted.end()) {  // named at its second occurrence
-        const auto first = std::find(origins->begin(), origins->end(), *dup);
-        const auto l = std::size_t(std::find(first + 1, origins->end(), *dup) - origins->begin());
-        return At(in.offset() - 12 * (count - l),
-                  "duplicate leaf origin (" + std::to_string(dup->x()) + ", " +
-                      std::to_string(dup->y()) + ", " + std::to_string(dup->z()) + ")");
-    }
+    if (std::string e = CheckOriginSet(*origins, origins_at); !e.empty()) return e;
     masks->resize(count);
     *active = 0;
     for (Mask& m : *masks) {

@@ -25,6 +25,11 @@ inline constexpr std::size_t kTsdfMinLeafBytes = 12 + 8 * kTsdfMaskWords + 8;
 /// Leaf origins beyond this many voxels from the volume's origin are refused (2^24: 168 km at
 /// the smallest voxel, 0.01 m).
 inline constexpr std::int32_t kTsdfMaxOriginVoxels = 1 << 24;
+/// At most 8 + L / this nodes of 128^3 voxels above L leaves (a mapped surface puts tens of
+/// leaves in each).
+inline constexpr std::size_t kTsdfLeavesPerMidNode = 8;
+/// At most 8 + L / this nodes of 4096^3 voxels above L leaves (a submap: the 8 octants).
+inline constexpr std::size_t kTsdfLeavesPerTopNode = 64;
 
 /// True when both hold the same voxels with bit-identical values and settings.
 bool SameTsdfVoxels(const TsdfVolume::Impl& a, const TsdfVolume::Impl& b);
@@ -34,7 +39,8 @@ std::string SerializeTsdf(const TsdfVolume::Impl& impl);
 
 /// Parses SerializeTsdf's bytes. Untrusted input: every count is checked against the bytes left
 /// before allocating, every value (finite; weight in [0, max_weight]) and origin (aligned,
-/// bounded, unique; an active voxel in every leaf) before building; returns nullptr and sets
+/// bounded, unique, clustered; an active voxel in every leaf) before building; returns nullptr and
+/// sets
 /// `*error` (when not null) to the byte offset and the rule on failure.
 std::unique_ptr<TsdfVolume::Impl> DeserializeTsdf(std::string_view bytes, std::string* error);
 

@@ -136,6 +136,31 @@ TEST(TsdfBytes, RefusesOriginsOffTheLeafGridOrTooFar) {
     ExpectRefused(far, l.origins_at, "beyond");
 }
 
+// Leaf l moved to (node * (l / per_node) + 8 * (l % per_node), 0, 0).
+std::string Spread(std::string bytes, std::int32_t node, std::size_t per_node) {
+    const Layout l = LayoutOf(bytes);
+    for (std::size_t i = 0; i < l.leaves; ++i) {
+        const auto x = std::int32_t(node * std::int32_t(i / per_node) + 8 * (i % per_node));
+        Put(bytes, l.origins_at + 12 * i, x);
+        Put<std::int32_t>(bytes, l.origins_at + 12 * i + 4, 0);
+        Put<std::int32_t>(bytes, l.origins_at + 12 * i + 8, 0);
+    }
+    return bytes;
+}
+
+TEST(TsdfBytes, RefusesLeavesScatteredOverTreeNodes) {
+    const std::string bytes = SmallVolume().Serialize();
+    const Layout l = LayoutOf(bytes);
+    ASSERT_GE(l.leaves, 64 * 8 / 3u);  // enough leaves that 16 a node break the top-node rule
+    std::string error;
+    // 16 leaves a 128^3 node, every such node in a 4096^3 node of its own: the top rule.
+    ExpectRefused(Spread(bytes, 4096, 16), l.origins_at, "tree nodes of 4096^3 voxels");
+    // One leaf a 128^3 node: the middle rule.
+    ExpectRefused(Spread(bytes, 128, 1), l.origins_at, "tree nodes of 128^3 voxels");
+    // 16 leaves a 128^3 node, all in one 4096^3 node: accepted.
+    EXPECT_TRUE(TsdfVolume::Deserialize(Spread(bytes, 128, 16), &error).has_value()) << error;
+}
+
 TEST(TsdfBytes, RefusesALeafWithoutActiveVoxels) {
     std::string bytes = SmallVolume().Serialize();
     const Layout l = LayoutOf(bytes);

@@ -236,18 +236,16 @@ std::string CheckValues(const std::vector<float>& sdf, const std::vector<float>&
 }
 
 // Builds the grids of checked leaves: inactive voxels keep the backgrounds, as when integrated.
-void BuildGrids(TsdfVolume::Impl& impl, const std::vector<openvdb::Coord>& origins,
-                const std::vector<Mask>& masks, const std::vector<float>& sdf,
-                const std::vector<float>& weight) {
+void BuildGrids(TsdfVolume::Impl& impl, const TsdfVoxelList& list) {
     const float sdf_background = impl.sdf->background();
     std::size_t v = 0;
-    for (std::size_t l = 0; l < origins.size(); ++l) {
-        auto s_leaf = std::make_unique<Leaf>(origins[l], sdf_background, false);
-        auto w_leaf = std::make_unique<Leaf>(origins[l], 0.0f, false);
+    for (std::size_t l = 0; l < list.origins.size(); ++l) {
+        auto s_leaf = std::make_unique<Leaf>(list.origins[l], sdf_background, false);
+        auto w_leaf = std::make_unique<Leaf>(list.origins[l], 0.0f, false);
         for (openvdb::Index i = 0; i < Leaf::SIZE; ++i) {
-            if ((masks[l][i >> 6] >> (i & 63) & 1) == 0) continue;
-            s_leaf->setValueOn(i, sdf[v]);
-            w_leaf->setValueOn(i, weight[v]);
+            if ((list.masks[l][i >> 6] >> (i & 63) & 1) == 0) continue;
+            s_leaf->setValueOn(i, list.sdf[v]);
+            w_leaf->setValueOn(i, list.weight[v]);
             ++v;
         }
         impl.sdf->tree().addLeaf(s_leaf.release());
@@ -256,7 +254,7 @@ void BuildGrids(TsdfVolume::Impl& impl, const std::vector<openvdb::Coord>& origi
 }
 
 // The voxels after the header (tsdf_serialize.h's layout) into `impl`. Returns "" or the refusal.
-std::string ReadVoxels(Reader& in, TsdfVolume::Impl& impl) {
+std::string ReadVoxels(Reader& in, TsdfVoxelList& list) {
     if (in.left() < sizeof(std::uint64_t)) return At(in.offset(), "truncated leaf count");
     const std::size_t count_at = in.offset();
     const std::uint64_t count = in.Take<std::uint64_t>();
@@ -265,25 +263,21 @@ std::string ReadVoxels(Reader& in, TsdfVolume::Impl& impl) {
                                 std::to_string(kTsdfMinLeafBytes) + " bytes a leaf, " +
                                 std::to_string(in.left()) + " left");
     }
-    std::vector<openvdb::Coord> origins;
-    std::vector<Mask> masks;
     std::size_t active = 0;
-    if (std::string e = ReadLeaves(in, count, &origins, &masks, &active); !e.empty()) return e;
+    if (std::string e = ReadLeaves(in, count, &list.origins, &list.masks, &active); !e.empty()) {
+        return e;
+    }
     if (in.left() / 8 < active || in.left() != 8 * active) {
         return At(in.offset(), std::to_string(active) + " active voxels need " +
                                    std::to_string(8 * active) + " bytes of values, length " +
                                    std::to_string(in.left()) + " left");
     }
     const std::size_t sdf_at = in.offset();
-    const std::vector<float> sdf = ReadShuffled(in.here(), active);
+    list.sdf = ReadShuffled(in.here(), active);
     in.Skip(4 * active);
-    const std::vector<float> weight = ReadShuffled(in.here(), active);
+    list.weight = ReadShuffled(in.here(), active);
     in.Skip(4 * active);
-    if (std::string e = CheckValues(sdf, weight, impl.config.max_weight, sdf_at); !e.empty()) {
-        return e;
-    }
-    BuildGrids(impl, origins, masks, sdf, weight);
-    return "";
+    return CheckValues(list.sdf, list.weight, list.config.max_weight, sdf_at);
 }
 
 }  // namespace
@@ -326,10 +320,10 @@ std::string SerializeTsdf(const TsdfVolume::Impl& impl) {
     return out + voxels;
 }
 
-std::unique_ptr<TsdfVolume::Impl> DeserializeTsdf(std::string_view bytes, std::string* error) {
+std::optional<TsdfVoxelList> DecodeTsdfVoxels(std::string_view bytes, std::string* error) {
     auto fail = [&](const std::string& what) {
         if (error != nullptr) *error = "TSDF bytes: " + what;
-        return std::unique_ptr<TsdfVolume::Impl>();
+        return std::optional<TsdfVoxelList>();
     };
     Header h;
     if (bytes.size() < sizeof h) return fail(At(bytes.size(), "truncated header"));
@@ -343,16 +337,24 @@ std::unique_ptr<TsdfVolume::Impl> DeserializeTsdf(std::string_view bytes, std::s
     if (!std::isfinite(h.max_weight) || !std::isfinite(h.min_mesh_weight)) {
         return fail(At(offsetof(Header, max_weight), "weight settings are not finite"));
     }
-    const TsdfConfig c = ConfigOf(h);
+    TsdfVoxelList list;
+    list.config = ConfigOf(h);
     try {
-        c.Validate();
+        list.config.Validate();
     } catch (const std::invalid_argument& e) {
         return fail(At(0, std::string("header settings: ") + e.what()));
     }
-    auto impl = std::make_unique<TsdfVolume::Impl>(c);
     Reader in(bytes);
     in.Skip(sizeof h);
-    if (std::string e = ReadVoxels(in, *impl); !e.empty()) return fail(e);
+    if (std::string e = ReadVoxels(in, list); !e.empty()) return fail(e);
+    return list;
+}
+
+std::unique_ptr<TsdfVolume::Impl> DeserializeTsdf(std::string_view bytes, std::string* error) {
+    const std::optional<TsdfVoxelList> list = DecodeTsdfVoxels(bytes, error);
+    if (!list) return nullptr;
+    auto impl = std::make_unique<TsdfVolume::Impl>(list->config);
+    BuildGrids(*impl, *list);
     impl->MarkAllDirty();
     return impl;
 }

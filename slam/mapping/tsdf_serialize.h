@@ -8,13 +8,15 @@
 // each, stored byte-plane by byte-plane). Inactive voxels hold the backgrounds.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
-#include "slam/mapping/tsdf.h"
+#include "slam/mapping/tsdf_impl.h"
 
 namespace certislam::slam {
 
@@ -31,6 +33,27 @@ inline constexpr std::size_t kTsdfLeavesPerMidNode = 8;
 /// At most 8 + L / this nodes of 4096^3 voxels above L leaves (a submap: the 8 octants).
 inline constexpr std::size_t kTsdfLeavesPerTopNode = 64;
 
+/// The active voxels of a TSDF as its bytes hold them (no grids: a few bytes a voxel).
+struct TsdfVoxelList {
+    TsdfConfig config;                    ///< the volume's settings
+    std::vector<openvdb::Coord> origins;  ///< leaf origins, in the bytes' order
+    std::vector<std::array<std::uint64_t, kTsdfMaskWords>> masks;  ///< active masks, by leaf
+    std::vector<float> sdf, weight;  ///< active voxels' values, leaf by leaf in mask order
+
+    /// Calls f(ijk, sdf, weight) for every active voxel, in the order of a grid's ValueOn walk.
+    template <typename F>
+    void ForEach(F&& f) const {
+        std::size_t v = 0;
+        for (std::size_t l = 0; l < origins.size(); ++l) {
+            for (int i = 0; i < 512; ++i) {
+                if ((masks[l][i >> 6] >> (i & 63) & 1) == 0) continue;
+                f(origins[l].offsetBy(i >> 6, (i >> 3) & 7, i & 7), sdf[v], weight[v]);
+                ++v;
+            }
+        }
+    }
+};
+
 /// True when both hold the same voxels with bit-identical values and settings.
 bool SameTsdfVoxels(const TsdfVolume::Impl& a, const TsdfVolume::Impl& b);
 
@@ -43,5 +66,8 @@ std::string SerializeTsdf(const TsdfVolume::Impl& impl);
 /// sets
 /// `*error` (when not null) to the byte offset and the rule on failure.
 std::unique_ptr<TsdfVolume::Impl> DeserializeTsdf(std::string_view bytes, std::string* error);
+
+/// DeserializeTsdf's checks, without building grids: the voxel list, or nullopt and `*error`.
+std::optional<TsdfVoxelList> DecodeTsdfVoxels(std::string_view bytes, std::string* error);
 
 }  // namespace certislam::slam

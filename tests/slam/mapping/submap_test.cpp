@@ -197,6 +197,8 @@ TEST(TsdfMap, FusedMeshBySlabsEqualsTheMeshOfTheFusedVolume) {
     std::string error;
     map.AddSubmap(*DeserializeSubmap(SerializeSubmap(peer.submaps()[0]), &error));
     ASSERT_GT(map.submaps().size(), 2u);
+    // Closed submaps are packed: slabs fuse them from their voxel lists, Fuse from their grids.
+    ASSERT_TRUE(map.submaps()[0].volume.packed());
     TsdfConfig fused_config;
     fused_config.voxel_size_m = 0.15;  // not the submaps' voxel: resampled
     const TriangleMesh whole = map.Fuse(fused_config).ExtractMesh();

@@ -332,9 +332,14 @@ bool TsdfVolume::packed() const { return impl_->IsPacked(); }
 
 std::optional<TsdfVolume> TsdfVolume::DeserializePacked(std::string_view bytes,
                                                         std::string* error) {
-    auto impl = DeserializeTsdf(bytes, error);
-    if (!impl) return std::nullopt;
+    // Checked as a voxel list: the grids are never built (their sizes follow from the list).
+    const std::optional<TsdfVoxelList> list = DecodeTsdfVoxels(bytes, error);
+    if (!list) return std::nullopt;
+    auto impl = std::make_unique<Impl>(list->config);
     PackTsdf(*impl, std::string(bytes));
+    impl->packed_stats.active_voxels = list->sdf.size();
+    impl->packed_stats.leaf_blocks = list->origins.size();
+    impl->packed_stats.allocated_voxels = list->origins.size() * Leaf::SIZE;
     return TsdfVolume(std::move(impl));
 }
 

@@ -298,6 +298,10 @@ TEST(TsdfMap, PackedSubmapsGiveTheSameMapAndCountTheirBytes) {
     ASSERT_TRUE(received.has_value()) << error;
     EXPECT_TRUE(received->volume.packed());
     EXPECT_TRUE(received->volume.SameVoxels(peer.submaps().front().volume));
+    const TsdfStats got = received->volume.Stats(), sent = peer.submaps().front().volume.Stats();
+    EXPECT_EQ(got.active_voxels, sent.active_voxels);  // counted from the bytes, not the grids
+    EXPECT_EQ(got.leaf_blocks, sent.leaf_blocks);
+    EXPECT_EQ(got.allocated_voxels, sent.allocated_voxels);
     TsdfMap live_team = BuildMap(0, live_config, poses, poses);
     live_team.AddSubmap(*DeserializeSubmap(SerializeSubmap(peer.submaps().front()), &error));
     packed.AddSubmap(std::move(*received));

@@ -195,7 +195,7 @@ TEST(TsdfBytes, RefusesNonFiniteDistancesAndWeightsOutOfRange) {
 TEST(TsdfBytes, RefusesHeaderSettingsThatAreNotAValidConfig) {
     const std::string bytes = SmallVolume().Serialize();
     std::string bad_magic = bytes;
-    bad_magic[7] = '2';  // the OpenVDB stream's version
+    bad_magic[7] = '2';  // CSTSDF02, the former format (an OpenVDB stream)
     ExpectRefused(bad_magic, 0, "bad magic");
     std::string nan_weight = bytes;
     Put(nan_weight, 56, std::numeric_limits<float>::quiet_NaN());  // max_weight

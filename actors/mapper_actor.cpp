@@ -218,7 +218,7 @@ void MapperActor::Publish() {
         *update.mutable_t_world_anchor() = ToProto(s.T_world_submap);
         update.set_voxel_size_m(static_cast<float>(s.volume.config().voxel_size_m));
         std::vector<transport::SharedBuffer> frames;
-        if (dirty) {  // the submap stream compresses its voxels itself (OpenVDB + blosc)
+        if (dirty) {  // the submap bytes hold raw voxels (tsdf_serialize.h): zstd packs them
             const std::string raw = slam::SerializeSubmap(s);
             const std::string payload =
                 config_.zstd_level > 0 ? Compress(raw, config_.zstd_level) : raw;

@@ -41,8 +41,8 @@ struct MapperConfig {
     /// ended, or no keyframe came for this long (>= 0): a growing submap is not re-sent whole
     /// on every publish tick.
     std::chrono::milliseconds active_submap_quiet{1000};
-    /// zstd level of submap payloads on the wire, [0, 19] (0: uncompressed). The OpenVDB stream
-    /// is already blosc-compressed; zstd 3 on top still about halves it.
+    /// zstd level of submap payloads on the wire, [0, 19] (0: uncompressed). The submap bytes
+    /// hold raw voxels (masks and byte-planed floats), which zstd 3 about halves.
     int zstd_level = 3;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.

@@ -2,8 +2,7 @@
 # Fuzzes every untrusted decoder with libFuzzer (clang, ASan + UBSan), each for a bounded time: the
 # envelope decoder, the message bodies the actors accept (actors/convert.h: solver, certifier,
 # mapper, loop matcher and descriptor bodies), the durable log reader, the g2o reader, the PCD
-# reader; FUZZ_TARGETS=submap adds a peer's submap bytes (OpenVDB's stream reader, which is not
-# safe on hostile bytes yet: a heap overflow in its blosc reader, see BENCHMARKS.md, Faults).
+# reader, a peer's submap bytes (slam/mapping/tsdf_serialize.h's checked voxel format).
 # Usage: deploy/fuzz.sh [SECONDS]   (default 40 per target; FUZZ_BUILD_DIR overrides build-fuzz/;
 # FUZZ_TARGETS="bodies g2o" picks targets)
 # Builds only the fuzzers in their own clang build folder (the bodies and the durable log link a
@@ -15,7 +14,7 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${FUZZ_BUILD_DIR:-$root/build-fuzz}"
 seconds="${1:-40}"
-targets="${FUZZ_TARGETS:-envelope bodies durable_log g2o pcd}"
+targets="${FUZZ_TARGETS:-envelope bodies durable_log g2o pcd submap}"
 
 "$root/deploy/install-deps.sh"
 
@@ -54,15 +53,11 @@ printf 'FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA binary\n0123456789a
 
 for target in $targets; do
   max_len=8192
-  leaks=1
   case "$target" in bodies | durable_log) max_len=65536 ;; submap) max_len=262144 ;; esac
-  # OpenVDB 10's readTopology leaks the node it was reading when a malformed stream throws
-  # (library code; BENCHMARKS.md, Faults): leak reports are off for the submap target only.
-  [ "$target" = submap ] && leaks=0
   echo "fuzz: $target for ${seconds} s (corpus $build/corpus-$target, crashes in $build/artifacts)"
   mkdir -p "$build/corpus-$target"
   # New inputs go to the first corpus folder; the seeds are read as well.
   "$build/tests/fuzz/fuzz_$target" "$build/corpus-$target" "$build/seeds-$target" \
-    -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -detect_leaks="$leaks" -max_len="$max_len" \
+    -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -detect_leaks=1 -max_len="$max_len" \
     -artifact_prefix="$build/artifacts/$target-" -print_final_stats=1
 done

@@ -138,8 +138,8 @@ class TsdfMap {
     std::vector<std::optional<TriangleMesh>> mesh_;  // per submap, in its frame; nullopt: stale
 };
 
-/// Compressed bytes of `submap` (what a robot sends a peer): ids, anchor pose, keyframe list
-/// and the volume's OpenVDB/blosc stream. Lossless.
+/// The bytes of `submap` (what a robot sends a peer): ids, anchor pose, keyframe list
+/// and the volume's voxels (tsdf_serialize.h's checked format). Lossless.
 std::string SerializeSubmap(const Submap& submap);
 
 /// Parses SerializeSubmap's bytes. Untrusted input: returns nullopt and sets `*error` naming

@@ -188,8 +188,8 @@ TsdfStats GridStats(const TsdfVolume::Impl& im) {
     return s;
 }
 
-// zstd over the blosc-compressed OpenVDB stream: its headers, masks and the blosc blocks
-// of a sparse band still compress about twofold (the mapper's wire payload does the same).
+// zstd over SerializeTsdf's voxels (masks and byte-planed floats compress about twofold; the
+// mapper's wire payload does the same).
 constexpr int kPackZstdLevel = 3;
 
 std::string ZstdPack(const std::string& bytes) {
@@ -231,11 +231,27 @@ std::unique_ptr<TsdfVolume::Impl> UnpackTsdf(const TsdfVolume::Impl& im) {
     return live;
 }
 
+// The voxels of a packed `im`, decoded without building grids (its bytes were checked when kept).
+TsdfVoxelList UnpackVoxels(const TsdfVolume::Impl& im) {
+    std::string error;
+    std::optional<TsdfVoxelList> list = DecodeTsdfVoxels(ZstdUnpack(im.packed), &error);
+    CERTISLAM_CHECK(list.has_value());
+    return std::move(*list);
+}
+
+// The bounding box of the observed voxels of `im`, live or packed.
+openvdb::CoordBBox ActiveBox(const TsdfVolume::Impl& im) {
+    if (!im.IsPacked()) return im.weight->evalActiveVoxelBoundingBox();
+    openvdb::CoordBBox box;
+    UnpackVoxels(im).ForEach([&](const openvdb::Coord& c, float, float) { box.expand(c); });
+    return box;
+}
+
 // The x indices [lo, hi] of a volume of voxel `voxel` that FuseTsdfVoxels maps `src`'s observed
 // voxels to by `T`: the images of their bounding box's corners, widened by one voxel (rounding).
 std::pair<int, int> FusedXRange(const TsdfVolume::Impl& src, const Eigen::Isometry3d& T,
                                 double voxel) {
-    const openvdb::CoordBBox box = src.weight->evalActiveVoxelBoundingBox();
+    const openvdb::CoordBBox box = ActiveBox(src);
     if (box.empty()) return {1, 0};
     const Eigen::Affine3d A =
         Eigen::Scaling(1.0 / voxel) * T * Eigen::Scaling(src.config.voxel_size_m);
@@ -316,9 +332,14 @@ bool TsdfVolume::packed() const { return impl_->IsPacked(); }
 
 std::optional<TsdfVolume> TsdfVolume::DeserializePacked(std::string_view bytes,
                                                         std::string* error) {
-    auto impl = DeserializeTsdf(bytes, error);
-    if (!impl) return std::nullopt;
+    // Checked as a voxel list: the grids are never built (their sizes follow from the list).
+    const std::optional<TsdfVoxelList> list = DecodeTsdfVoxels(bytes, error);
+    if (!list) return std::nullopt;
+    auto impl = std::make_unique<Impl>(list->config);
     PackTsdf(*impl, std::string(bytes));
+    impl->packed_stats.active_voxels = list->sdf.size();
+    impl->packed_stats.leaf_blocks = list->origins.size();
+    impl->packed_stats.allocated_voxels = list->origins.size() * Leaf::SIZE;
     return TsdfVolume(std::move(impl));
 }
 
@@ -408,9 +429,7 @@ TriangleMesh TsdfVolume::FuseAndMesh(const std::vector<FusePart>& parts, const T
     std::vector<std::pair<int, int>> ranges;
     int x_min = std::numeric_limits<int>::max(), x_max = std::numeric_limits<int>::min();
     for (const FusePart& p : parts) {
-        std::unique_ptr<Impl> decoded;
-        ranges.push_back(
-            FusedXRange(Readable(*p.volume->impl_, &decoded), p.T_fused_part, config.voxel_size_m));
+        ranges.push_back(FusedXRange(*p.volume->impl_, p.T_fused_part, config.voxel_size_m));
         if (ranges.back().first > ranges.back().second) continue;
         x_min = std::min(x_min, ranges.back().first);
         x_max = std::max(x_max, ranges.back().second);
@@ -424,9 +443,13 @@ TriangleMesh TsdfVolume::FuseAndMesh(const std::vector<FusePart>& parts, const T
         Impl slab(config);
         for (std::size_t i = 0; i < parts.size(); ++i) {
             if (ranges[i].second < x0 || ranges[i].first > x1) continue;
-            std::unique_ptr<Impl> decoded;
-            FuseTsdfVoxels(slab, Readable(*parts[i].volume->impl_, &decoded), parts[i].T_fused_part,
-                           x0, x1);
+            // A packed part is fused from its voxel list: a few bytes a voxel, not its grids.
+            const Impl& part = *parts[i].volume->impl_;
+            if (part.IsPacked()) {
+                FuseTsdfVoxels(slab, UnpackVoxels(part), parts[i].T_fused_part, x0, x1);
+            } else {
+                FuseTsdfVoxels(slab, part, parts[i].T_fused_part, x0, x1);
+            }
         }
         std::vector<openvdb::Coord> origins;
         for (auto it = slab.weight->tree().cbeginLeaf(); it; ++it) {

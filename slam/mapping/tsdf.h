@@ -133,7 +133,8 @@ class TsdfVolume {
     /// True when both volumes hold the same voxels with bit-identical values and settings.
     bool SameVoxels(const TsdfVolume& other) const;
 
-    /// Lossless, compressed bytes of the grids and settings (OpenVDB stream, zip/blosc).
+    /// Lossless bytes of the settings and the active voxels (tsdf_serialize.h's checked format,
+    /// uncompressed: Pack and the mapper's wire add zstd).
     std::string Serialize() const;
 
     /// Parses Serialize's bytes. Untrusted input: returns nullopt and sets `*error` on failure.

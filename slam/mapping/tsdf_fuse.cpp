@@ -5,30 +5,31 @@
 #include <cmath>
 
 #include "slam/mapping/tsdf_impl.h"
+#include "slam/mapping/tsdf_serialize.h"
 
 namespace certislam::slam {
+namespace {
 
-void FuseTsdfVoxels(TsdfVolume::Impl& im, const TsdfVolume::Impl& src,
-                    const Eigen::Isometry3d& T_this_other, int x_lo, int x_hi) {
+// The fusion of the voxels `for_each` visits (f(ijk, sdf, weight) for each) of a volume of
+// voxel `src_voxel`, in that order (the order fixes the float rounding of the averages).
+template <typename ForEach>
+void FuseEach(TsdfVolume::Impl& im, double src_voxel, ForEach&& for_each,
+              const Eigen::Isometry3d& T_this_other, int x_lo, int x_hi) {
     const double inv_voxel = 1.0 / im.config.voxel_size_m;
-    const double src_voxel = src.config.voxel_size_m;
     const float max_sdf = static_cast<float>(im.config.truncation_m());
     const Eigen::Affine3d T = Eigen::Scaling(inv_voxel) * T_this_other * Eigen::Scaling(src_voxel);
     auto s_acc = im.sdf->getAccessor();
     auto w_acc = im.weight->getAccessor();
-    const auto src_s = src.sdf->getConstAccessor();
     openvdb::Coord last_leaf = openvdb::Coord::max();
-    for (auto it = src.weight->cbeginValueOn(); it; ++it) {
-        const openvdb::Coord c = it.getCoord();
+    for_each([&](const openvdb::Coord& c, float src_sdf, float w) {
         const Eigen::Vector3d q = T * Eigen::Vector3d(c.x(), c.y(), c.z());
         const openvdb::Coord ijk(static_cast<int>(std::lround(q.x())),
                                  static_cast<int>(std::lround(q.y())),
                                  static_cast<int>(std::lround(q.z())));
-        if (ijk.x() < x_lo || ijk.x() > x_hi) continue;
-        const float w = *it;
+        if (ijk.x() < x_lo || ijk.x() > x_hi) return;
         const float old_w = w_acc.getValue(ijk);
         const float new_w = old_w + w;
-        const float value = std::min(src_s.getValue(c), max_sdf);
+        const float value = std::min(src_sdf, max_sdf);
         s_acc.setValue(ijk, (s_acc.getValue(ijk) * old_w + value * w) / new_w);
         w_acc.setValue(ijk, std::min(new_w, im.config.max_weight));
         const openvdb::Coord leaf = ijk & ~openvdb::Coord::ValueType(7);
@@ -36,7 +37,27 @@ void FuseTsdfVoxels(TsdfVolume::Impl& im, const TsdfVolume::Impl& src,
             im.dirty_blocks.insert(leaf);
             last_leaf = leaf;
         }
-    }
+    });
+}
+
+}  // namespace
+
+void FuseTsdfVoxels(TsdfVolume::Impl& im, const TsdfVolume::Impl& src,
+                    const Eigen::Isometry3d& T_this_other, int x_lo, int x_hi) {
+    const auto src_s = src.sdf->getConstAccessor();
+    auto each = [&](auto&& f) {
+        for (auto it = src.weight->cbeginValueOn(); it; ++it) {
+            const openvdb::Coord c = it.getCoord();
+            f(c, src_s.getValue(c), *it);
+        }
+    };
+    FuseEach(im, src.config.voxel_size_m, each, T_this_other, x_lo, x_hi);
+}
+
+void FuseTsdfVoxels(TsdfVolume::Impl& im, const TsdfVoxelList& src,
+                    const Eigen::Isometry3d& T_this_other, int x_lo, int x_hi) {
+    auto each = [&](auto&& f) { src.ForEach(f); };
+    FuseEach(im, src.config.voxel_size_m, each, T_this_other, x_lo, x_hi);
 }
 
 }  // namespace certislam::slam

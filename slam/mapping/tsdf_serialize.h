@@ -1,23 +1,73 @@
-// A TSDF's lossless compressed bytes (OpenVDB stream, blosc) and voxel-exact comparison
+// A TSDF's lossless bytes in a checked voxel format of our own, and voxel-exact comparison
 // (private to tsdf*.cpp: TsdfVolume::Serialize, Deserialize and SameVoxels call them).
+//
+// Layout, little-endian: an 80-byte header (magic "CSTSDF03", the TsdfConfig, the length of
+// the rest), then the leaf count L (uint64), L leaf origins (3 x int32, multiples of 8), L
+// active masks (8 x uint64; bit i of word w is voxel 64 w + i of the 8^3 leaf, x-major), then
+// the distances and then the weights of the A active voxels in leaf and mask order (A float32
+// each, stored byte-plane by byte-plane). Inactive voxels hold the backgrounds.
 #pragma once
 
+#include <array>
+#include <cstddef>
+#include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
-#include "slam/mapping/tsdf.h"
+#include "slam/mapping/tsdf_impl.h"
 
 namespace certislam::slam {
+
+inline constexpr std::size_t kTsdfHeaderBytes = 80;  ///< the fixed header
+inline constexpr std::size_t kTsdfMaskWords = 8;     ///< 64-bit words of a leaf's active mask
+/// A leaf's least bytes: origin, mask and the two values of its (at least one) active voxel.
+inline constexpr std::size_t kTsdfMinLeafBytes = 12 + 8 * kTsdfMaskWords + 8;
+/// Leaf origins beyond this many voxels from the volume's origin are refused (2^24: 168 km at
+/// the smallest voxel, 0.01 m).
+inline constexpr std::int32_t kTsdfMaxOriginVoxels = 1 << 24;
+/// At most 8 + L / this nodes of 128^3 voxels above L leaves (a mapped surface puts tens of
+/// leaves in each).
+inline constexpr std::size_t kTsdfLeavesPerMidNode = 8;
+/// At most 8 + L / this nodes of 4096^3 voxels above L leaves (a submap: the 8 octants).
+inline constexpr std::size_t kTsdfLeavesPerTopNode = 64;
+
+/// The active voxels of a TSDF as its bytes hold them (no grids: a few bytes a voxel).
+struct TsdfVoxelList {
+    TsdfConfig config;                    ///< the volume's settings
+    std::vector<openvdb::Coord> origins;  ///< leaf origins, in the bytes' order
+    std::vector<std::array<std::uint64_t, kTsdfMaskWords>> masks;  ///< active masks, by leaf
+    std::vector<float> sdf, weight;  ///< active voxels' values, leaf by leaf in mask order
+
+    /// Calls f(ijk, sdf, weight) for every active voxel, in the order of a grid's ValueOn walk.
+    template <typename F>
+    void ForEach(F&& f) const {
+        std::size_t v = 0;
+        for (std::size_t l = 0; l < origins.size(); ++l) {
+            for (int i = 0; i < 512; ++i) {
+                if ((masks[l][i >> 6] >> (i & 63) & 1) == 0) continue;
+                f(origins[l].offsetBy(i >> 6, (i >> 3) & 7, i & 7), sdf[v], weight[v]);
+                ++v;
+            }
+        }
+    }
+};
 
 /// True when both hold the same voxels with bit-identical values and settings.
 bool SameTsdfVoxels(const TsdfVolume::Impl& a, const TsdfVolume::Impl& b);
 
-/// The grids and settings of `impl` as bytes: a fixed little-endian header, then the grids.
+/// The grids and settings of `impl` as bytes (the layout above).
 std::string SerializeTsdf(const TsdfVolume::Impl& impl);
 
-/// Parses SerializeTsdf's bytes. Untrusted input: returns nullptr and sets `*error` (when not
-/// null) on failure.
+/// Parses SerializeTsdf's bytes. Untrusted input: every count is checked against the bytes left
+/// before allocating, every value (finite; weight in [0, max_weight]) and origin (aligned,
+/// bounded, unique, clustered; an active voxel in every leaf) before building; returns nullptr and
+/// sets
+/// `*error` (when not null) to the byte offset and the rule on failure.
 std::unique_ptr<TsdfVolume::Impl> DeserializeTsdf(std::string_view bytes, std::string* error);
+
+/// DeserializeTsdf's checks, without building grids: the voxel list, or nullopt and `*error`.
+std::optional<TsdfVoxelList> DecodeTsdfVoxels(std::string_view bytes, std::string* error);
 
 }  // namespace certislam::slam

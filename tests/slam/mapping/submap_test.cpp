@@ -197,6 +197,8 @@ TEST(TsdfMap, FusedMeshBySlabsEqualsTheMeshOfTheFusedVolume) {
     std::string error;
     map.AddSubmap(*DeserializeSubmap(SerializeSubmap(peer.submaps()[0]), &error));
     ASSERT_GT(map.submaps().size(), 2u);
+    // Closed submaps are packed: slabs fuse them from their voxel lists, Fuse from their grids.
+    ASSERT_TRUE(map.submaps()[0].volume.packed());
     TsdfConfig fused_config;
     fused_config.voxel_size_m = 0.15;  // not the submaps' voxel: resampled
     const TriangleMesh whole = map.Fuse(fused_config).ExtractMesh();
@@ -296,6 +298,10 @@ TEST(TsdfMap, PackedSubmapsGiveTheSameMapAndCountTheirBytes) {
     ASSERT_TRUE(received.has_value()) << error;
     EXPECT_TRUE(received->volume.packed());
     EXPECT_TRUE(received->volume.SameVoxels(peer.submaps().front().volume));
+    const TsdfStats got = received->volume.Stats(), sent = peer.submaps().front().volume.Stats();
+    EXPECT_EQ(got.active_voxels, sent.active_voxels);  // counted from the bytes, not the grids
+    EXPECT_EQ(got.leaf_blocks, sent.leaf_blocks);
+    EXPECT_EQ(got.allocated_voxels, sent.allocated_voxels);
     TsdfMap live_team = BuildMap(0, live_config, poses, poses);
     live_team.AddSubmap(*DeserializeSubmap(SerializeSubmap(peer.submaps().front()), &error));
     packed.AddSubmap(std::move(*received));

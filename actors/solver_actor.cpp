@@ -274,7 +274,9 @@ void SolverActor::Heartbeat() {
         return;
     }
     AnnounceNeighbours();
-    Publish();
+    // Converged synchronous rounds: the peers have these poses from the last round and take no
+    // asynchronous ones; re-sending them every heartbeat was most of a solve's solver bytes.
+    if (!config_.synchronous || !rounds_converged_ || publish_pending_) Publish();
     for (const auto& loop :
          config_.rebroadcast_loops ? state_.InterRobotLoops() : std::vector<slam::LoopClosure>{}) {
         auto proto = ToProto(loop);  // late or restarted peers learn the loops they missed

@@ -202,7 +202,7 @@ void SolverActor::Changed() {
 }
 
 void SolverActor::Tick() {
-    if (config_.synchronous && !rounds_gave_up_) {
+    if (InRounds()) {
         SyncTick();
         return;
     }
@@ -263,7 +263,7 @@ void SolverActor::Publish() {
 
 void SolverActor::Heartbeat() {
     if (state_.NumPoses() == 0) return;
-    const bool in_rounds = config_.synchronous && !rounds_gave_up_ && !rounds_converged_;
+    const bool in_rounds = InRounds() && !rounds_converged_;
     if (in_rounds) {
         // Rounds stalled for a heartbeat: a peer may have joined late; re-send the last round's
         // messages (receivers keep one copy per round).
@@ -276,7 +276,7 @@ void SolverActor::Heartbeat() {
     AnnounceNeighbours();
     // Converged synchronous rounds: the peers have these poses from the last round and take no
     // asynchronous ones; re-sending them every heartbeat was most of a solve's solver bytes.
-    if (!config_.synchronous || !rounds_converged_ || publish_pending_) Publish();
+    if (!InRounds() || !rounds_converged_ || publish_pending_) Publish();
     for (const auto& loop :
          config_.rebroadcast_loops ? state_.InterRobotLoops() : std::vector<slam::LoopClosure>{}) {
         auto proto = ToProto(loop);  // late or restarted peers learn the loops they missed

@@ -47,6 +47,9 @@ struct SolverActorConfig {
     /// rounds.max_rounds). For a whole graph known up front (pose-graph robots); false: the
     /// asynchronous updates of a growing graph.
     bool synchronous = false;
+    /// With `synchronous`: asynchronous RBCD updates while the graph grows (a live estimate for
+    /// the mapper and the peers), the rounds once it is final. false: no update before final.
+    bool async_until_final = false;
     certify::TeamRoundsConfig rounds;  ///< the rounds
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
@@ -98,6 +101,7 @@ class SolverActor final : public NodeActor {
     void Withdraw(const std::pair<slam::PoseId, slam::PoseId>& ends);
     void Tick();
     bool IsFinal() const;
+    bool InRounds() const;  ///< synchronous rounds drive the block now (not given up)
     void SyncTick();
     void AdvanceRounds();
     bool SyncAction(const certify::RoundAction& a);

@@ -14,6 +14,10 @@ bool SolverActor::IsFinal() const {
     return final;
 }
 
+bool SolverActor::InRounds() const {
+    return config_.synchronous && !rounds_gave_up_ && (!config_.async_until_final || IsFinal());
+}
+
 void SolverActor::SendRoundPoses(std::uint64_t round) {
     certify::PoseBlocks poses = state_.PublicPoses(steps_);
     poses.team_round = round + 1;
@@ -122,6 +126,7 @@ void SolverActor::SyncTick() {
         const auto nbrs = state_.Neighbours();
         rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()), rc);
         rounds_level_ = state_.StaircaseLevel();
+        local_ok_ = false;  // an asynchronous phase's convergence says nothing of the rounds
         AnnounceNeighbours();
         if (rounds_level_ == 0) state_.LocalChordalStart();
         for (const auto& p : early_poses_) {

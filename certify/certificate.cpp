@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -27,6 +28,19 @@ constexpr double kBoundRefinementFactor = 0.1;  ///< eta step of the lower-bound
 constexpr double kLambdaMargin = 4.0;           ///< first refined eta in units of -lambda_min
 constexpr int kMaxRefinements = 12;             ///< eta 10^-12: S's rounding noise is near
 constexpr double kManifoldTolerance = 1e-8;     ///< ||Y_i^T Y_i - I||_F of a point on St(d, r)
+/// Ulps within which each entry of Q lies of the exact Laplacian of the measurements as read
+/// (ConnectionLaplacian: a few roundings per edge, then a sum over a pose's edges)
+constexpr double kLaplacianUlps = 32.0;
+
+// Quadruple precision for the objective's sums: 113 significant bits, so a product of two
+// doubles is exact. __float128 on x86-64; where it is missing (aarch64) long double is quad.
+#if defined(__SIZEOF_FLOAT128__)
+__extension__ typedef __float128 Quad;
+constexpr double kQuadEpsilon = 1.0 / 5192296858534827628530496329220096.0;  // 2^-112
+#else
+typedef long double Quad;
+constexpr double kQuadEpsilon = std::numeric_limits<long double>::epsilon();
+#endif
 
 void Require(bool ok, const std::string& field, double value, const std::string& rule) {
     if (!ok) {
@@ -145,20 +159,20 @@ std::optional<MinEigenpairResult> Eigenpair(const SparseMatrix& S, double eta,
 /// Sets the relative bound and the verdict of a proven bound.
 void FinishBound(const CertificateQuantities& q, const CertificateConfig& config,
                  CertificateResult* result) {
-    // Relative to f(X) floored at its own rounding noise (f* = 0 graphs).
-    const double noise = kRoundingNoise * result->q_norm * q.x_norm;
-    result->objective_noise = noise * q.x_norm;
+    // Relative to f(X) floored at its rounding floor (f* = 0 graphs).
+    result->objective_noise = q.objective_noise;
     const double scale = std::max(result->objective, result->objective_noise);
-    result->relative_suboptimality_bound = result->suboptimality_bound / scale;
-    // f* >= 0 (a sum of squares), so f(X) - f* <= f(X): where f(X) itself is within its rounding
-    // noise of 0 (a tree, kitti_08: f* = 0) X is optimal to within that noise, though no bound
-    // relative to f(X) can be proven.
+    result->relative_suboptimality_bound = scale > 0.0 ? result->suboptimality_bound / scale : 0.0;
+    // f* >= 0 (a sum of squares), so f(X) - f* <= f(X): where f(X) is within the rounding floor
+    // of Q's doubles (a tree, kitti_08: f* = 0), X is optimal to the precision of the problem's
+    // doubles, though no bound relative to f(X) can be proven.
     if (result->objective <= result->objective_noise &&
         result->relative_suboptimality_bound > config.max_relative_bound) {
         result->status = CertificateResult::Status::kCertified;
-        char text[96];
-        std::snprintf(text, sizeof(text), "the bound %.3g is within f's rounding noise %.3g",
-                      result->suboptimality_bound, result->objective_noise);
+        char text[128];
+        std::snprintf(text, sizeof(text),
+                      "f(X) = %.3g is within the rounding floor %.3g of Q's doubles (f* >= 0)",
+                      result->objective, result->objective_noise);
         result->reason = text;
         return;
     }
@@ -291,6 +305,36 @@ double NormUpperBound(const SparseMatrix& Q) {
     return row_sums.size() > 0 ? row_sums.maxCoeff() : 0.0;
 }
 
+ObjectiveShare ObjectiveOfColumns(const SparseMatrix& Q, const Eigen::MatrixXd& X,
+                                  Eigen::Index begin, Eigen::Index end) {
+    CERTISLAM_CHECK(X.cols() == Q.rows() && 0 <= begin && begin <= end && end <= Q.cols());
+    Quad sum = 0;
+    double magnitude = 0.0;  // |X|^T |Q| |X| over the columns: the size of the cancelled terms
+    double terms = 0.0;
+    for (Eigen::Index c = begin; c < end; ++c) {
+        for (SparseMatrix::InnerIterator it(Q, c); it; ++it) {
+            Quad dot = 0;
+            double abs_dot = 0.0;
+            for (Eigen::Index a = 0; a < X.rows(); ++a) {
+                dot += static_cast<Quad>(X(a, it.row())) * static_cast<Quad>(X(a, c));
+                abs_dot += std::abs(X(a, it.row()) * X(a, c));
+            }
+            sum += static_cast<Quad>(it.value()) * dot;
+            magnitude += std::abs(it.value()) * abs_dot;
+            terms += static_cast<double>(X.rows()) + 1.0;
+        }
+    }
+    constexpr double eps = std::numeric_limits<double>::epsilon();
+    ObjectiveShare out;
+    out.value = static_cast<double>(sum);
+    // Q's doubles differ from the exact Laplacian by up to kLaplacianUlps eps |Q|, which moves
+    // f(X) by up to that times |X|^T |Q| |X|: below it f(X) cannot tell X from an exact optimum
+    // of f* = 0. The quad sums add at most terms * kQuadEpsilon of it, the final rounding eps.
+    out.noise =
+        (kLaplacianUlps * eps + terms * kQuadEpsilon) * magnitude + eps * std::abs(out.value);
+    return out;
+}
+
 CertificateResult Certify(const SparseMatrix& Q, const Eigen::MatrixXd& X, int d,
                           const CertificateConfig& config) {
     return CertifyWithMultipliers(Q, X, d, LambdaBlocks(Q, X, d), config);
@@ -377,7 +421,9 @@ CertificateResult CertifyWithMultipliers(const SparseMatrix& Q, const Eigen::Mat
     CertificateQuantities q;
     q.d = d;
     q.n = n;
-    q.objective = (X * Q).cwiseProduct(X).sum();
+    const ObjectiveShare objective = ObjectiveOfColumns(Q, X, 0, Q.cols());
+    q.objective = objective.value;
+    q.objective_noise = objective.noise;
     for (const auto& block : lambda) q.dual_value += block.trace();
     q.q_norm = NormUpperBound(Q);
     q.gradient_norm = 2.0 * (X * S).norm();

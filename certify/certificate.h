@@ -73,8 +73,8 @@ struct CertificateResult {
     double bound_eta = 0.0;            ///< smallest eta found with S + eta D PSD (<= eta)
     double lower_bound = 0.0;          ///< max(tr(Lambda) - bound_eta d n, 0) <= f*
     double suboptimality_bound = 0.0;  ///< f(X) - lower_bound >= f(X) - f*
-    /// suboptimality_bound / f(X) (f(X) floored at its rounding noise, so f* = 0 gives 0)
-    double objective_noise = 0.0;  ///< rounding noise of f(X) (relative bounds floor f(X) here)
+    /// suboptimality_bound / f(X) (f(X) floored at its rounding floor, so f* = 0 gives 0)
+    double objective_noise = 0.0;  ///< rounding floor of f(X) (ObjectiveOfColumns)
     double relative_suboptimality_bound = 0.0;
     double lambda_min = 0.0;           ///< Rayleigh quotient v^T S v of the computed eigenvector
     double lambda_min_relative = 0.0;  ///< lambda_min / ||Q||
@@ -132,14 +132,30 @@ BoundSearch VerdictAndBound(double eta, double lambda_min, int bound_refinements
 /// The first-order quantities of a certificate, however they were computed (one process, or
 /// sums over robots): every one from the same X on the same graph.
 struct CertificateQuantities {
-    int d = 3;                   ///< dimension
-    int n = 0;                   ///< poses
-    double objective = 0.0;      ///< f(X) = tr(X Q X^T)
-    double dual_value = 0.0;     ///< tr(Lambda)
-    double q_norm = 0.0;         ///< upper bound of ||Q||_2 (NormUpperBound)
-    double gradient_norm = 0.0;  ///< ||2 X S||_F
-    double x_norm = 0.0;         ///< ||X||_F (scale of the rounding noise of X Q)
+    int d = 3;                     ///< dimension
+    int n = 0;                     ///< poses
+    double objective = 0.0;        ///< f(X) = tr(X Q X^T)
+    double dual_value = 0.0;       ///< tr(Lambda)
+    double q_norm = 0.0;           ///< upper bound of ||Q||_2 (NormUpperBound)
+    double gradient_norm = 0.0;    ///< ||2 X S||_F
+    double x_norm = 0.0;           ///< ||X||_F (scale of the rounding noise of X Q)
+    double objective_noise = 0.0;  ///< rounding floor of f(X) (ObjectiveOfColumns)
 };
+
+/// f(X) summed over some of Q's columns, and its rounding floor.
+struct ObjectiveShare {
+    double value = 0.0;  ///< sum over the columns c of X_c^T (X Q)_c, for Q's doubles exactly
+    /// How far `value` may lie from f(X) for the exact Laplacian of the measurements as read
+    /// (Q's rounding, weighed by |X|^T |Q| |X|): where f(X) is below it, X is as good as an exact
+    /// optimum of f* = 0 to the precision of the problem's doubles.
+    double noise = 0.0;
+};
+
+/// f(X) = tr(X Q X^T) over columns [begin, end) of Q (Q symmetric; X r x Q.rows()), summed in
+/// quadruple precision: the Laplacian form cancels terms of size |X|^T |Q| |X| (10^15 on
+/// kitti_08), so in doubles its own error would be tens of times the floor.
+ObjectiveShare ObjectiveOfColumns(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
+                                  Eigen::Index begin, Eigen::Index end);
 
 /// A PSD test of S + e D for the S of one X and one graph (monotone in e).
 using PsdTestFunction = std::function<bool(double e)>;

@@ -4,8 +4,10 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 
+#include "certify/certificate.h"
 #include "slam/backend/connection_laplacian.h"
 #include "slam/core/check.h"
 
@@ -13,6 +15,7 @@ namespace certislam::certify {
 namespace {
 
 constexpr int kBlock = 4;  ///< columns per pose of a robot's local problem, d + 1 with d = 3
+constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
 
 }  // namespace
 
@@ -132,9 +135,10 @@ bool MakeLocalProblem(int robot, const std::vector<slam::PoseId>& own_ids,
         X_nbr.middleCols(kBlock * k, kBlock) =
             X.middleCols(kBlock * p.rows.neighbor_poses[k], kBlock);
     }
-    const Eigen::SparseMatrix<double> Q_own = Q.leftCols(kBlock * n);
-    const Eigen::MatrixXd XQ_own = X * Q_own;  // (X Q)[:, own columns]
-    p.cost = XQ_own.cwiseProduct(X_own).sum();
+    const ObjectiveShare share = ObjectiveOfColumns(Q, X, 0, kBlock * n);
+    p.cost = share.value;
+    // The team adds the robots' shares in doubles: 64 eps of each covers teams of up to 64.
+    p.objective_noise = share.noise + 64.0 * kEpsilon * std::abs(share.value);
     p.x_norm_sq = X_own.squaredNorm();
     Eigen::MatrixXd G = p.rows.own * X_own.transpose();  // (S X^T)[own rows, :]
     if (p.rows.nbr.cols() > 0) G += p.rows.nbr * X_nbr.transpose();

@@ -53,6 +53,7 @@ struct LocalCertificateProblem {
     double gradient_sq = 0.0;                ///< own columns' share of ||2 X S||_F^2
     double q_row_sum = 0.0;                  ///< largest absolute row sum of Q's own rows
     double x_norm_sq = 0.0;                  ///< ||X_own||_F^2
+    double objective_noise = 0.0;            ///< own columns' share of f's rounding floor
 };
 
 /// Builds robot `robot`'s problem from its poses' block (`own_ids` in index order, X_own r x 4n),

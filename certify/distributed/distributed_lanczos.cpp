@@ -37,6 +37,7 @@ enum SetupIndex {
     kStartNormSq,
     kDimension,
     kXNormSq,
+    kObjectiveNoise,
     kSetupN
 };
 
@@ -107,6 +108,17 @@ Eigen::VectorXd TridiagonalEigenvector(const Eigen::VectorXd& a, const Eigen::Ve
     return y;
 }
 
+/// The team's first-order quantities from the setup sums.
+void SetTeamSums(const std::vector<double>& sums, int d, DistributedVerdict* v) {
+    v->cost = sums[kCost];
+    v->gradient_norm = std::sqrt(sums[kGradientSq]);
+    v->q_norm = sums[kQRowSum];
+    v->dual_value = sums[kTraceLambda];
+    v->x_norm = std::sqrt(sums[kXNormSq]);
+    v->objective_noise = sums[kObjectiveNoise];
+    v->poses = static_cast<int>(sums[kDimension]) / (d + 1);
+}
+
 }  // namespace
 
 CertificateQuantities QuantitiesOf(const DistributedVerdict& v) {
@@ -118,6 +130,7 @@ CertificateQuantities QuantitiesOf(const DistributedVerdict& v) {
     q.q_norm = v.q_norm;
     q.gradient_norm = v.gradient_norm;
     q.x_norm = v.x_norm;
+    q.objective_noise = v.objective_noise;
     return q;
 }
 
@@ -162,6 +175,7 @@ void LanczosParticipant::Begin() {
     setup[kStartNormSq] = q.squaredNorm();
     setup[kDimension] = static_cast<double>(q.size());
     setup[kXNormSq] = problem_.x_norm_sq;
+    setup[kObjectiveNoise] = problem_.objective_noise;
     Share(0, kSetupStage, setup);
     SendVector(0, q);  // unnormalised: every reader divides by the norm from the setup sums
     Advance();
@@ -254,12 +268,7 @@ void LanczosParticipant::Advance() {
         switch (phase_) {
             case Phase::kSetup: {
                 if (!Reduced(0, kSetupStage, &sums, true)) return;
-                verdict_.cost = sums[kCost];
-                verdict_.gradient_norm = std::sqrt(sums[kGradientSq]);
-                verdict_.q_norm = sums[kQRowSum];
-                verdict_.dual_value = sums[kTraceLambda];
-                verdict_.x_norm = std::sqrt(sums[kXNormSq]);
-                verdict_.poses = static_cast<int>(sums[kDimension]) / (problem_.rows.d + 1);
+                SetTeamSums(sums, problem_.rows.d, &verdict_);
                 // Not a critical point: no eigenvalue can make a verdict (the centralised check
                 // stops here too, by the same rule), so no Lanczos step is spent.
                 CertificateConfig rule;

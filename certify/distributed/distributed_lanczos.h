@@ -60,6 +60,7 @@ struct DistributedVerdict {
     double gradient_norm = 0.0;       ///< ||2 X S||_F (team)
     double gradient_tolerance = 0.0;  ///< absolute first-order tolerance (FirstOrderVerdict)
     double x_norm = 0.0;              ///< ||X||_F (team)
+    double objective_noise = 0.0;     ///< rounding floor of f(X) (team; ObjectiveOfColumns)
     int poses = 0;                    ///< poses of the round's graph
     int steps = 0;                    ///< Lanczos steps (S v products)
     double entries_sent = 0.0;        ///< doubles of v this robot sent to neighbours

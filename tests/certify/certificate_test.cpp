@@ -317,6 +317,82 @@ TEST(Certificate, MergedParallelEdgesLeaveTheCertificateMatrixAsTheFilesIs) {
     EXPECT_NEAR(f_file, f_merged + offset, kCostTolerance * f_file);
 }
 
+/// A chain of n poses starting at `start`, heavy weights, X composed from the measurements
+/// (a tree: f* = 0); 10 km out, the Laplacian form cancels terms of 10^15 and more.
+struct FarChain {
+    slam::PoseGraph graph;
+    Eigen::MatrixXd X;
+};
+
+FarChain MakeFarChain(int n, const Eigen::Vector3d& start) {
+    FarChain c;
+    c.graph.d = 3;
+    c.graph.n = n;
+    c.X = Eigen::MatrixXd::Zero(3, 4 * n);
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d t = start;
+    for (int k = 0; k < n; ++k) {
+        c.X.block(0, 4 * k, 3, 3) = R;
+        c.X.col(4 * k + 3) = t;
+        const Eigen::Matrix3d dR = (Eigen::AngleAxisd(0.01 * k, Eigen::Vector3d::UnitZ()) *
+                                    Eigen::AngleAxisd(0.002, Eigen::Vector3d::UnitX()))
+                                       .toRotationMatrix();
+        const Eigen::Vector3d dt(1.3, 0.1 * std::sin(k), 0.01);
+        if (k + 1 < n) c.graph.edges.push_back(Edge(k, k + 1, dR, dt, 1e4, 1e5));
+        t += R * dt;
+        R = R * dR;
+    }
+    return c;
+}
+
+TEST(Objective, TreeComposedInDoublesIsWithinItsFloorFarBelowTheNormProduct) {
+    const FarChain c = MakeFarChain(300, Eigen::Vector3d(1e4, -2e4, 30.0));
+    const auto Q = slam::ConnectionLaplacian(c.graph);
+    const ObjectiveShare f = ObjectiveOfColumns(Q, c.X, 0, Q.cols());
+    EXPECT_GE(f.value, 0.0);
+    EXPECT_LE(f.value, f.noise);
+    // The floor weighs Q's rounding by |X|^T |Q| |X|, not a norm product (1e-12 ||Q|| ||X||^2
+    // certified points that were not optimal).
+    EXPECT_LT(f.noise, 1e-14 * NormUpperBound(Q) * c.X.squaredNorm());
+}
+
+TEST(Objective, OneCentimetreOffATreeCostsItsClosedFormAndEveryEdgesSum) {
+    FarChain c = MakeFarChain(300, Eigen::Vector3d(3.0, -2.0, 1.0));
+    const int k = 150;
+    c.X(0, 4 * k + 3) += 1e-2;  // moves pose k: its two edges each cost tau (1e-2)^2
+    const auto Q = slam::ConnectionLaplacian(c.graph);
+    const ObjectiveShare f = ObjectiveOfColumns(Q, c.X, 0, Q.cols());
+    const double expected = 2.0 * 1e5 * 1e-4;
+    EXPECT_NEAR(f.value, expected, 1e-9 * expected);
+    EXPECT_NEAR(f.value, slam::Objective(c.graph, c.X), 1e-9 * expected);
+    EXPECT_GT(f.value, 10.0 * f.noise);
+    // Split by columns, the shares add up to the whole (how the robots sum it).
+    const ObjectiveShare a = ObjectiveOfColumns(Q, c.X, 0, 4 * k);
+    const ObjectiveShare b = ObjectiveOfColumns(Q, c.X, 4 * k, Q.cols());
+    EXPECT_NEAR(a.value + b.value, f.value, 1e-12 * expected);
+}
+
+TEST(Certificate, ALooseBoundAtASmallCostIsNotCertified) {
+    // f(X) = 0.237 with tr(Lambda) = 0.2 and ||Q|| ||X||^2 1e-12 = 0.25: the old norm-product
+    // floor called this "certified within rounding noise"; its proven bound is 16 % of f.
+    CertificateQuantities q;
+    q.d = 3;
+    q.n = 40;
+    q.objective = 0.237;
+    q.dual_value = 0.2;
+    q.q_norm = 1e4;
+    q.x_norm = 5e3;
+    q.objective_noise = 1e-20;
+    CertificateConfig config;
+    CertificateResult result;
+    ASSERT_TRUE(FirstOrderVerdict(q, config, &result));
+    SecondOrderVerdict(
+        q, 1e-9, config, [](double) { return true; }, &result);
+    ASSERT_TRUE(result.has_bound);
+    EXPECT_GT(result.relative_suboptimality_bound, 0.1);
+    EXPECT_STREQ(VerdictName(result.status), "inconclusive");
+}
+
 TEST(CertificateConfig, RejectsBadValuesNamingTheField) {
     CertificateConfig config;
     config.eta_relative = -1.0;

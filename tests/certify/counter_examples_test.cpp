@@ -184,27 +184,40 @@ TEST(CounterExamples, ClosedFormCycleIsCertifiedWithTheExactBound) {
     EXPECT_STREQ(VerdictName(cert.status), "certified");
 }
 
-TEST(CounterExamples, ConsistentCycleWithZeroOptimumIsCertified) {
-    // A square whose one side is 1 um too long: f* ~ 1e-12, below the rounding noise of f(X)
-    // (||Q|| ||X||^2 1e-12), so a relative bound means nothing and the dual bound (clamped at
-    // f* >= 0) cannot reach 1e-6 of f; a bound within f's rounding noise proves optimality.
+/// A square of unit sides and quarter turns, one side `excess` too long: f* ~ excess^2 / 4.
+StaircaseResult SolveSquare(double excess) {
     const int n = 4;
     slam::PoseGraph graph;
     graph.d = 2;
     graph.n = n;
     for (int k = 0; k < n; ++k) {
         graph.edges.push_back(testing::Edge(k, (k + 1) % n, testing::Rot(2, std::numbers::pi / 2),
-                                            Eigen::Vector2d(k == 0 ? 1.0 + 1e-6 : 1.0, 0.0), 10.0,
+                                            Eigen::Vector2d(k == 0 ? 1.0 + excess : 1.0, 0.0), 10.0,
                                             1.0));
     }
-    const StaircaseResult solved =
-        SolveCertified(graph, slam::ContiguousPartition(n, 1),
-                       slam::LiftToRank(slam::ChordalInitialization(graph), 2));
+    return SolveCertified(graph, slam::ContiguousPartition(n, 1),
+                          slam::LiftToRank(slam::ChordalInitialization(graph), 2));
+}
+
+TEST(CounterExamples, ConsistentCycleWithZeroOptimumIsCertifiedWithinQsRoundingFloor) {
+    // f* = 0: a bound relative to f(X) means nothing; relative to Q's rounding floor (f(X) is
+    // below it, and f* >= 0) it proves X optimal to the precision of the problem's doubles.
+    const StaircaseResult solved = SolveSquare(0.0);
     ASSERT_EQ(solved.status, StaircaseResult::Status::kCertified) << solved.certificate.reason;
-    EXPECT_LT(solved.certificate.objective, 1e-10);
-    EXPECT_GT(solved.certificate.objective, 0.0);
+    EXPECT_LE(solved.certificate.objective, solved.certificate.objective_noise);
+    EXPECT_LT(solved.certificate.objective_noise, 1e-10);
     EXPECT_TRUE(solved.certificate.has_bound);
-    EXPECT_STREQ(VerdictName(solved.certificate.status), "certified");
+}
+
+TEST(CounterExamples, SlightlyInconsistentCycleNeedsARealRelativeBound) {
+    // One side 1 mm too long: f* ~ 2.5e-7, far above Q's rounding floor, so "certified" must come
+    // from a proven relative bound, never from the floor.
+    const StaircaseResult solved = SolveSquare(1e-3);
+    ASSERT_EQ(solved.status, StaircaseResult::Status::kCertified) << solved.certificate.reason;
+    EXPECT_GT(solved.certificate.objective, 1e3 * solved.certificate.objective_noise);
+    EXPECT_TRUE(solved.certificate.has_bound);
+    EXPECT_LE(solved.certificate.relative_suboptimality_bound, 1e-6);
+    EXPECT_TRUE(solved.certificate.reason.empty()) << solved.certificate.reason;
 }
 
 }  // namespace

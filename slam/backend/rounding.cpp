@@ -8,8 +8,25 @@
 
 namespace certislam::slam {
 
+namespace {
+
+// The nearest rotation by a fixed-size SVD: the d = 2, 3 cases, rounded for every pose of every
+// snapshot, run several times faster than the dynamic-size decomposition below.
+template <int D>
+Eigen::MatrixXd ProjectFixed(const Eigen::MatrixXd& M) {
+    using Mat = Eigen::Matrix<double, D, D>;
+    const Eigen::JacobiSVD<Mat> svd(Mat(M), Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix<double, D, 1> s = Eigen::Matrix<double, D, 1>::Ones();
+    if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0) s(D - 1) = -1.0;
+    return svd.matrixU() * s.asDiagonal() * svd.matrixV().transpose();
+}
+
+}  // namespace
+
 Eigen::MatrixXd ProjectToRotation(const Eigen::MatrixXd& M) {
     const int d = static_cast<int>(M.rows());
+    if (M.cols() == d && d == 3) return ProjectFixed<3>(M);
+    if (M.cols() == d && d == 2) return ProjectFixed<2>(M);
     Eigen::JacobiSVD<Eigen::MatrixXd> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
     Eigen::VectorXd s = Eigen::VectorXd::Ones(d);
     if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0) s(d - 1) = -1.0;

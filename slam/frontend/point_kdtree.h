@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <memory>
 #include <nanoflann.hpp>
+#include <utility>
 #include <vector>
 
 #include "slam/core/keyframe.h"
@@ -32,6 +33,13 @@ class PointKdTree {
         indices.resize(found);
         squared.resize(found);
         return found;
+    }
+
+    /// Every point within sqrt(squared_radius) of `q` as (index, squared distance), nearest first.
+    std::size_t Within(const Eigen::Vector3f& q, float squared_radius,
+                       std::vector<std::pair<std::size_t, float>>& found) const {
+        found.clear();
+        return tree_->radiusSearch(q.data(), squared_radius, found, nanoflann::SearchParams());
     }
 
     /// The nearest point's index and squared distance; false when the cloud is empty.

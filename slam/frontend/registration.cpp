@@ -5,11 +5,15 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/registration/gicp.h>
+#include <pcl/search/kdtree.h>
 
+#include <algorithm>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
 #include "slam/frontend/downsample.h"
+#include "slam/frontend/point_kdtree.h"
 #include "slam/frontend/registration_quality.h"
 
 namespace certislam::slam {
@@ -31,6 +35,51 @@ PclCloud::Ptr ToPcl(const PointCloud& cloud) {
     return out;
 }
 
+// PCL's search interface answered by the project's nanoflann tree. GICP asks one point at a time;
+// FLANN's knnSearch opens an OpenMP parallel region per call, whose thread wake-ups (futex) cost
+// more than the query itself.
+class NanoflannSearch : public pcl::search::KdTree<pcl::PointXYZ> {
+  public:
+    void setInputCloud(const PointCloudConstPtr& cloud,
+                       const pcl::IndicesConstPtr& indices = pcl::IndicesConstPtr()) override {
+        if (indices && !indices->empty()) {
+            throw std::invalid_argument("NanoflannSearch: index subsets are not supported");
+        }
+        input_ = cloud;
+        indices_ = indices;
+        points_.resize(cloud->size());
+        for (std::size_t i = 0; i < cloud->size(); ++i) points_[i] = (*cloud)[i].getVector3fMap();
+        nano_ = std::make_unique<PointKdTree>(points_);
+    }
+
+    int nearestKSearch(const pcl::PointXYZ& point, int k, pcl::Indices& k_indices,
+                       std::vector<float>& k_sqr_distances) const override {
+        std::vector<std::size_t> found;
+        nano_->Knn(point.getVector3fMap(), static_cast<std::size_t>(std::max(k, 0)), found,
+                   k_sqr_distances);
+        k_indices.assign(found.begin(), found.end());
+        return static_cast<int>(found.size());
+    }
+
+    int radiusSearch(const pcl::PointXYZ& point, double radius, pcl::Indices& k_indices,
+                     std::vector<float>& k_sqr_distances, unsigned int max_nn) const override {
+        std::vector<std::pair<std::size_t, float>> found;
+        nano_->Within(point.getVector3fMap(), static_cast<float>(radius * radius), found);
+        if (max_nn > 0 && found.size() > max_nn) found.resize(max_nn);
+        k_indices.resize(found.size());
+        k_sqr_distances.resize(found.size());
+        for (std::size_t i = 0; i < found.size(); ++i) {
+            k_indices[i] = static_cast<pcl::index_t>(found[i].first);
+            k_sqr_distances[i] = found[i].second;
+        }
+        return static_cast<int>(found.size());
+    }
+
+  private:
+    slam::PointCloud points_;  // the tree refers to these by address
+    std::unique_ptr<PointKdTree> nano_;
+};
+
 struct StageResult {
     Eigen::Matrix4f T_target_source;
     bool converged = false;
@@ -41,6 +90,8 @@ StageResult RunGicp(const PointCloud& source, const PointCloud& target,
                     const Eigen::Matrix4f& guess, double max_correspondence_m,
                     const RegistrationConfig& config) {
     pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ> gicp;
+    gicp.setSearchMethodSource(std::make_shared<NanoflannSearch>());
+    gicp.setSearchMethodTarget(std::make_shared<NanoflannSearch>());
     gicp.setInputSource(ToPcl(source));
     gicp.setInputTarget(ToPcl(target));
     gicp.setMaxCorrespondenceDistance(max_correspondence_m);

@@ -95,6 +95,12 @@ struct SolverState::Impl {
     std::optional<slam::RbcdAgent> agent;
     std::vector<slam::PoseId> local_nbr;  ///< neighbour poses in the agent's local order
     bool dirty = true;
+    /// The last Trajectory and the block and anchor pose it rounded: an actor asks every tick,
+    /// mostly while nothing moved, and rounding is an SVD per pose.
+    struct {
+        Eigen::MatrixXd X, X0;
+        std::vector<Eigen::Isometry3d> poses;
+    } mutable rounded;
 
     int n() const { return static_cast<int>(odom.size()); }
     bool Own(const slam::PoseId& id) const { return id.robot == robot; }
@@ -430,7 +436,15 @@ std::vector<Eigen::Isometry3d> SolverState::Trajectory(int anchor, int* anchor_u
         }
     }
     if (anchor_used != nullptr) *anchor_used = used;
+    auto& cache = m.rounded;
+    if (cache.X.size() == m.X.size() && cache.X0.size() == X0.size() && cache.X == m.X &&
+        cache.X0 == X0) {
+        return cache.poses;
+    }
     for (int k = 0; k < m.n(); ++k) out.push_back(LiftedRelative(X0, m.OwnPose(k)));
+    cache.X = m.X;
+    cache.X0 = X0;
+    cache.poses = out;
     return out;
 }
 

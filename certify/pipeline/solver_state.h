@@ -106,7 +106,8 @@ class SolverState {
     /// The whole own block (r x 4n) with own ids.
     PoseBlocks FullBlock(std::uint64_t iteration) const;
     /// Own poses rounded and expressed in the frame of `anchor`'s pose 0 when its lifted pose is
-    /// known (own pose 0 otherwise); `*anchor_used` tells which robot anchored them.
+    /// known (own pose 0 otherwise); `*anchor_used` tells which robot anchored them. Caches its
+    /// last answer (one caller thread, as everything here).
     std::vector<Eigen::Isometry3d> Trajectory(int anchor, int* anchor_used) const;
     /// Robots this one shares an edge with.
     std::set<int> Neighbours() const;

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 #include "tests/certify/pipeline/two_robot_problem.h"
@@ -96,6 +97,30 @@ TEST(SolverState, RobotWithoutEncounterKeepsItsOwnFrame) {
     EXPECT_EQ(anchor, 1);
     EXPECT_TRUE(traj[0].isApprox(Eigen::Isometry3d::Identity(), 1e-9));
     EXPECT_TRUE(robots[1].Neighbours().empty());
+}
+
+TEST(SolverState, TrajectoryFollowsEveryMoveOfTheBlockAndOfTheAnchor) {
+    // Trajectory keeps its last rounding while nothing moved: a moved block, a new keyframe or
+    // the anchor robot's new pose must each give new poses.
+    TwoRobotProblem problem = MakeTwoRobotProblem(20, 2, 2);
+    std::vector<SolverState> robots;
+    for (int k = 0; k < 2; ++k) robots.emplace_back(k, problem.config);
+    FeedProblem(problem, robots);
+    ASSERT_GE(RunUntilConverged(robots, [](int) { return std::vector<int>{0, 1}; }), 0);
+    const auto before = robots[1].Trajectory(0, nullptr);
+    EXPECT_EQ(robots[1].Trajectory(0, nullptr).back().matrix(), before.back().matrix());
+    Eigen::MatrixXd block = robots[1].FullBlock(0).blocks;
+    block.rightCols(1).array() += 0.5;  // the last pose's translation
+    robots[1].SetOwnBlock(block);
+    const auto moved = robots[1].Trajectory(0, nullptr);
+    EXPECT_GT((moved.back().translation() - before.back().translation()).norm(), 0.1);
+    PoseBlocks anchor = robots[0].PublicPoses(1);
+    const auto zero = std::find(anchor.ids.begin(), anchor.ids.end(), slam::PoseId{0, 0});
+    ASSERT_NE(zero, anchor.ids.end());
+    anchor.blocks.col(4 * (zero - anchor.ids.begin()) + 3).array() += 1.0;  // robot 0's pose 0
+    robots[1].SetNeighbourPoses(anchor);
+    const auto reanchored = robots[1].Trajectory(0, nullptr);
+    EXPECT_GT((reanchored.back().translation() - moved.back().translation()).norm(), 0.1);
 }
 
 TEST(SolverState, KeyframesOutOfOrderAndForeignLoopsAreRefused) {

@@ -92,6 +92,9 @@ class CertifierActor final : public NodeActor {
     void NoteVerdict(bool certified, const std::map<int, Bundle>& bundles);
     void SubscribeBundles();
     void ReadBundlesOf(int robot);
+    void OnBundleClosed(int robot);
+    void RequestBundles(const std::set<int>& robots);
+    void RequestWhatIsMissing();
     void Tick();
     bool Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const {
         return Assemble(bundles_, graph, X);
@@ -121,6 +124,16 @@ class CertifierActor final : public NodeActor {
     std::map<int, std::vector<Bundle>> history_;  ///< recent distinct bundles, newest last
     std::map<int, Bundle> round_bundles_;         ///< anchor: the bundles of the round
     std::set<int> bundle_streams_;                ///< robots whose bundle stream it reads
+    /// A bundle asked for: when last, and how often since it last arrived.
+    struct Request {
+        std::chrono::steady_clock::time_point at{};
+        int count = 0;
+    };
+    /// robot -> its bundle's request (solvers send a bundle only when it changed: a stream read
+    /// late, or lost in a restart, is asked for, again after round_resend doubling each time)
+    std::map<int, Request> requested_;
+    std::set<int> missing_;         ///< robots of waiting_ whose named bundle is not here
+    bool stall_requested_ = false;  ///< anchor: the stalled round's bundles were asked for
     std::unique_ptr<certify::LanczosParticipant> lanczos_;    ///< the round in progress
     std::uint64_t round_ = 0;                                 ///< its id
     std::uint64_t round_edges_ = 0;                           ///< edges of its graph

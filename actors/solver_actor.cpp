@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "actors/certifier_bundles.h"
 #include "actors/convert.h"
 #include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
@@ -225,7 +226,8 @@ void SolverActor::Tick() {
     work_ = !local_ok_ && step.status != certify::SolverStepResult::Status::kStuck;
     // A step that moved the block is published (within publish_period) even when it ends below
     // tolerance: otherwise the team's last refinements travel only with the heartbeat.
-    if (!local_ok_ || step.moved) bundle_dirty_ = true;
+    // A rebuild can move the block without an RBCD step (a new frame: AlignToLowerRobot).
+    if (!local_ok_ || step.moved || step.rebuilt) bundle_dirty_ = true;
     if (!local_ok_ || step.rebuilt || step.moved) publish_pending_ = true;
     if (publish_pending_ &&
         std::chrono::steady_clock::now() - last_publish_ >= config_.publish_period) {
@@ -236,11 +238,23 @@ void SolverActor::Tick() {
 }
 
 // A bundle goes out when it changed (at most every bundle_period) or a certifier asked for it;
-// never periodically: the certifiers keep what they heard (CertifierActor::RequestBundles).
+// never periodically: the certifiers keep what they heard and ask for what they miss
+// (CertifierActor::RequestWhatIsMissing). A request that arrives while the block is still
+// iterating stays pending and is answered with the converged bundle.
 bool SolverActor::BundleDue(std::chrono::steady_clock::time_point now) const {
     if (!local_ok_) return false;
     if (bundle_requested_ && now - requested_at_ >= kRequestWindow) return true;
     return bundle_dirty_ && now - last_bundle_ >= config_.bundle_period;
+}
+
+// The digest a certifier computes of the bundle SendBundle would send now (CertifierBundle):
+// whatever changed the block or the own edges, a flag missed or not, shows here.
+std::uint64_t SolverActor::CurrentBundleDigest() const {
+    CertifierBundle bundle;
+    bundle.status.set_phase(v1::SolverStatus::PHASE_CONVERGED);
+    bundle.edges = state_.OwnEdges();
+    bundle.block = state_.FullBlock(0);
+    return BundleDigest(bundle);
 }
 
 void SolverActor::Publish() {
@@ -283,19 +297,21 @@ void SolverActor::Heartbeat() {
         *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
         Send(*poses_out_, transport::Pack(proto), true);
     }
-    if (local_ok_ && (bundle_dirty_ || bundle_requested_)) SendBundle();
+    // A converged bundle that differs from the last one sent goes out even where no step
+    // flagged it: the certifiers re-check only on a changed bundle (or when they ask).
+    const bool unsent = IsFinal() && CurrentBundleDigest() != sent_digest_;
+    if (local_ok_ && (bundle_dirty_ || bundle_requested_ || unsent)) SendBundle();
     if (local_ok_) SendTrajectory();  // the mapper's, when the poses or the verdict changed
     work_ = work_ || !local_ok_;
     UpdateSnapshot();
 }
 
 void SolverActor::SendBundle() {
-    bool final = keyframes_ended_;
-    for (int r : Wiring().robots) final = final && loops_ended_.count(r) > 0;
     // Status, own edges, then the full block that closes the bundle: only once this robot is
     // final. The certifiers check only when every robot is (CertifierActor::Assemble), so an
     // earlier bundle would be bytes for nothing.
-    if (final) {
+    bool sent = true;
+    if (IsFinal()) {
         v1::SolverStatus status;
         *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
         status.set_iteration(steps_);
@@ -303,17 +319,19 @@ void SolverActor::SendBundle() {
         status.set_rank_r(static_cast<std::uint32_t>(state_.Rank()));
         status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
         status.set_gradient_norm(grad_norm_);
-        Send(*bundle_out_, transport::Pack(status), false);
+        sent = Send(*bundle_out_, transport::Pack(status), false);
         for (const auto& edge : state_.OwnEdges()) {
             auto proto = ToProto(edge);
             *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-            Send(*bundle_out_, transport::Pack(proto), false);
+            sent = Send(*bundle_out_, transport::Pack(proto), false) && sent;
         }
         auto block = ToProto(state_.FullBlock(steps_));
         *block.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-        Send(*bundle_out_, transport::Pack(block), false);
+        sent = Send(*bundle_out_, transport::Pack(block), false) && sent;
+        // A bundle cut short by a full queue is sent again at the next heartbeat.
+        if (sent) sent_digest_ = CurrentBundleDigest();
     }
-    bundle_dirty_ = false;
+    bundle_dirty_ = !sent;
     bundle_requested_ = false;
     last_bundle_ = std::chrono::steady_clock::now();
     SendTrajectory();

@@ -110,6 +110,7 @@ class SolverActor final : public NodeActor {
     void OnRoundSums(const v1::SolverStatus& status);
     void Heartbeat();
     bool BundleDue(std::chrono::steady_clock::time_point now) const;
+    std::uint64_t CurrentBundleDigest() const;
     void SendBundle();
     void SendTrajectory();
     void AnnounceNeighbours();
@@ -137,8 +138,9 @@ class SolverActor final : public NodeActor {
     /// for every request within kRequestWindow (one re-send reaches every subscriber).
     bool bundle_requested_ = false;
     std::chrono::steady_clock::time_point requested_at_{};
-    std::string last_trajectory_;  ///< the last TrajectoryUpdate sent, without its header
-    std::set<int> announced_;      ///< neighbours last announced on the bundle stream
+    std::uint64_t sent_digest_ = 0;  ///< BundleDigest of the last bundle sent (0: none yet)
+    std::string last_trajectory_;    ///< the last TrajectoryUpdate sent, without its header
+    std::set<int> announced_;        ///< neighbours last announced on the bundle stream
     std::uint64_t steps_ = 0;
     double grad_norm_ = 0.0;
     std::chrono::steady_clock::time_point last_bundle_{};

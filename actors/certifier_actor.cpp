@@ -63,9 +63,13 @@ bool CertifierActor::SettledSinceCertified() const {
     return true;
 }
 
-void CertifierActor::NoteVerdict(bool certified, const std::map<int, Bundle>& bundles) {
+void CertifierActor::NoteVerdict(const certify::CertificateResult& result,
+                                 const std::map<int, Bundle>& bundles) {
+    const bool certified = result.status == certify::CertificateResult::Status::kCertified;
     certified_bundles_.clear();
     if (certified) certified_bundles_ = bundles;
+    recheck_.reset();
+    if (!certified) recheck_ = Request{std::chrono::steady_clock::now(), 0};
 }
 
 CertifierActor::CertifierActor(zmq::context_t& context, TeamWiring wiring, CertifierConfig config)
@@ -138,7 +142,7 @@ void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::M
     const auto Q = slam::ConnectionLaplacian(graph);
     const auto result = certify::Certify(Q, X, 3, config_.certificate);
     ++checks_;
-    NoteVerdict(result.status == certify::CertificateResult::Status::kCertified, bundles_);
+    NoteVerdict(result, bundles_);
     auto report = ToProto(result, static_cast<std::uint32_t>(X.rows()));
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     report.set_iteration(graph.edges.size());  // which graph: its edge count
@@ -155,6 +159,7 @@ void CertifierActor::Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::M
                             const std::map<int, Bundle>& bundles) {
     const auto escaped = certify::EscapeSaddle(Q, X, 3, v, gradient_tolerance);
     if (escaped.status != certify::EscapeResult::Status::kEscaped) return;
+    recheck_.reset();  // the solvers send bundles at the new rank (and are asked while missing)
     ++level_;
     ++escapes_;
     int column = 0;
@@ -204,6 +209,7 @@ void CertifierActor::SubscribeRounds() {
 }
 
 void CertifierActor::StartRound() {
+    recheck_.reset();
     v1::CertificateRound round;
     *round.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     // Unique across anchor restarts: wall-clock milliseconds, then a counter.
@@ -385,7 +391,7 @@ void CertifierActor::RoundFinished() {
         dirty_ = true;
         return;
     }
-    NoteVerdict(decided->status == certify::CertificateResult::Status::kCertified, round_bundles_);
+    NoteVerdict(*decided, round_bundles_);
     auto report = ToProto(*decided, round_rank_);
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     report.set_iteration(round_edges_);  // which graph: its edge count

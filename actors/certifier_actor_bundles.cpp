@@ -1,5 +1,6 @@
 // Certifier actor, bundle streams: which robots' solver bundles it reads, how a bundle is
-// received, and the one request for a bundle sent before its stream was read.
+// received, and the requests (BundleRequest) for bundles it needs and does not hold: solvers
+// send a bundle only when it changed, so whatever a certifier missed it asks for.
 #include <algorithm>
 #include <chrono>
 #include <set>
@@ -46,6 +47,7 @@ void CertifierActor::SubscribeBundles() {
             return true;
         }
         pending_[robot] = Bundle{*status, {}, {}, 0};
+        pending_since_[robot] = std::chrono::steady_clock::now();
         return true;
     });
     On(v1::TrajectoryUpdate::descriptor()->full_name(), [count](const transport::Message& m) {
@@ -82,6 +84,7 @@ void CertifierActor::SubscribeBundles() {
         const bool same = last != bundles_.end() && last->second.digest == it->second.digest;
         bundles_[robot] = std::move(it->second);
         pending_.erase(it);
+        pending_since_.erase(robot);
         dirty_ = dirty_ || !same;
         OnBundleClosed(robot);
         return true;
@@ -89,7 +92,6 @@ void CertifierActor::SubscribeBundles() {
 }
 
 void CertifierActor::OnBundleClosed(int robot) {
-    requested_.erase(robot);
     if (robot == RobotId() && !anchor_ && config_.distributed) {
         // Neighbours known from the own edges: their streams are read before a round needs them.
         for (const auto& e : bundles_.at(robot).edges) {
@@ -102,43 +104,68 @@ void CertifierActor::OnBundleClosed(int robot) {
     }
 }
 
+void CertifierActor::SendRequest(const std::set<int>& robots) {
+    if (robots.empty()) return;
+    v1::BundleRequest request;
+    *request.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    for (int r : robots) request.add_robot_ids(static_cast<std::uint32_t>(r));
+    Send(*out_, transport::Pack(request), true);
+}
+
 void CertifierActor::RequestBundles(const std::set<int>& robots) {
     const auto now = std::chrono::steady_clock::now();
-    v1::BundleRequest request;
+    std::set<int> ask;
     for (int r : robots) {
-        if (pending_.count(r)) continue;  // arriving now
+        // Arriving now; a bundle begun longer ago lost its end (its solver restarted mid-bundle).
+        if (pending_.count(r) && now - pending_since_[r] < config_.round_resend) continue;
         Request& last = requested_[r];
         // A large bundle takes long to arrive on a loaded host: each re-ask re-sends it to every
-        // subscriber, so the asks back off.
+        // subscriber, so the asks back off (also across answers that were not what was wanted).
         const auto wait = config_.round_resend * (1 << std::min(last.count, kMaxBackoffs));
         if (last.count > 0 && now - last.at < wait) continue;
         last.at = now;
         ++last.count;
-        request.add_robot_ids(static_cast<std::uint32_t>(r));
+        ask.insert(r);
     }
-    if (request.robot_ids().empty()) return;
-    *request.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-    Send(*out_, transport::Pack(request), true);
+    SendRequest(ask);
 }
 
-// Asks again for what a round waits for; the anchor also for robots never heard from (it started
-// after their bundles went out) and, once per stalled round, for every robot's current bundle (a
-// restarted robot's new bundle may have gone out before the anchor read its stream again).
+// Asks for every bundle it needs and does not hold, with backoff, so no certifier waits forever
+// for a bundle sent before it read the stream, lost in a restart or on the way: a waiting
+// round's named bundles; the anchor every robot's it has none of (it started late, restarted, or
+// an escape emptied bundles_), another certifier its own and its known neighbours'. The anchor
+// also asks for every robot's current bundle once per stalled round and, backing off, after a
+// verdict that was not certified (RequestAfterVerdict).
 void CertifierActor::RequestWhatIsMissing() {
-    if (waiting_) RequestBundles(missing_);
+    std::set<int> wanted = waiting_ ? missing_ : std::set<int>{};
+    const std::set<int> team(Wiring().robots.begin(), Wiring().robots.end());
+    for (int r : anchor_ ? team : bundle_streams_) {
+        if (!bundles_.count(r)) wanted.insert(r);
+    }
+    std::erase_if(requested_, [&](const auto& entry) { return !wanted.count(entry.first); });
+    RequestBundles(wanted);
     if (!anchor_) return;
-    std::set<int> absent;
-    for (int r : Wiring().robots) {
-        if (!history_.count(r) && !pending_.count(r)) absent.insert(r);
-    }
-    RequestBundles(absent);
     const auto now = std::chrono::steady_clock::now();
-    if (lanczos_ && !lanczos_->Done() && !stall_requested_ &&
-        now - round_progress_ >= 2 * config_.round_resend) {
+    const bool in_round = lanczos_ && !lanczos_->Done();
+    if (in_round && !stall_requested_ && now - round_progress_ >= 2 * config_.round_resend) {
         stall_requested_ = true;
-        requested_.clear();
-        RequestBundles({Wiring().robots.begin(), Wiring().robots.end()});
+        SendRequest(team);
     }
+    if (!in_round) RequestAfterVerdict(team, now);
+}
+
+// After a verdict neither certified nor followed by an escape a new round needs new bundles; a
+// solver sends one when its bundle changes, and this ask covers a change that did not reach the
+// anchor (lost, or never flagged): a changed answer opens the round (dirty_), an unchanged one
+// does not. The first ask waits round_resend, each later one twice as long, up to 2^kMaxBackoffs.
+void CertifierActor::RequestAfterVerdict(const std::set<int>& team,
+                                         std::chrono::steady_clock::time_point now) {
+    if (!recheck_) return;
+    const auto wait = config_.round_resend * (1 << std::min(recheck_->count, kMaxBackoffs));
+    if (now - recheck_->at < wait) return;
+    recheck_->at = now;
+    ++recheck_->count;
+    SendRequest(team);
 }
 
 }  // namespace certislam::actors

@@ -11,7 +11,7 @@ PACKAGES=(
   libcli11-dev nlohmann-json3-dev libyaml-cpp-dev libclang-rt-14-dev iproute2
   librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev pluginlib-dev libament-index-cpp-dev
   ros-core-dev libroscpp-dev libtf2-ros-dev libvisualization-msgs-dev librosbag-dev
-  python3-rosmaster python3-rostopic python3-rosbag python3-rospy
+  python3-rosmaster python3-rostopic python3-rosbag python3-rospy python3-std-msgs python3-geometry-msgs python3-nav-msgs
   libzstd-dev pybind11-dev python3-numpy
 )
 

@@ -38,6 +38,7 @@ void CertifierConfig::Validate() const {
 
 namespace {
 
+constexpr std::size_t kHistory = 16;               ///< distinct bundles kept per robot for rounds
 constexpr std::size_t kMaxEarlyMessages = 100000;  ///< buffered messages of rounds not begun
 
 }  // namespace
@@ -63,13 +64,9 @@ bool CertifierActor::SettledSinceCertified() const {
     return true;
 }
 
-void CertifierActor::NoteVerdict(const certify::CertificateResult& result,
-                                 const std::map<int, Bundle>& bundles) {
-    const bool certified = result.status == certify::CertificateResult::Status::kCertified;
+void CertifierActor::NoteVerdict(bool certified, const std::map<int, Bundle>& bundles) {
     certified_bundles_.clear();
     if (certified) certified_bundles_ = bundles;
-    recheck_.reset();
-    if (!certified) recheck_ = Request{std::chrono::steady_clock::now(), 0};
 }
 
 CertifierActor::CertifierActor(zmq::context_t& context, TeamWiring wiring, CertifierConfig config)
@@ -88,9 +85,75 @@ void CertifierActor::OnStart() {
     Every(config_.period, [this] { Tick(); });
 }
 
+void CertifierActor::ReadBundlesOf(int robot) {
+    if (bundle_streams_.insert(robot).second) OpenClient(Edge::kBundle, robot);
+}
+
+void CertifierActor::SubscribeBundles() {
+    // The anchor reads every robot's bundles (it names them in rounds and checks centrally when
+    // a round falls silent); in distributed mode the others read their own and, once a round
+    // names them, their neighbours' (ReadBundlesOf in OnRound).
+    for (int r : Wiring().robots) {
+        if (anchor_ || r == RobotId()) ReadBundlesOf(r);
+    }
+    const auto count = [this](const transport::Message& m, std::uint32_t robot) {
+        if (int(robot) != RobotId()) {
+            bundle_bytes_.fetch_add(m.ByteSize());
+            CountPeerBytes(m.ByteSize());
+        }
+    };
+    On(v1::SolverStatus::descriptor()->full_name(), [this, count](const transport::Message& m) {
+        const auto status = transport::Unpack<v1::SolverStatus>(m);
+        if (!status || !IsValidStatus(*status)) return false;
+        count(m, status->header().robot_id());
+        pending_[int(status->header().robot_id())] = Bundle{*status, {}, {}, 0};
+        return true;
+    });
+    On(v1::TrajectoryUpdate::descriptor()->full_name(), [count](const transport::Message& m) {
+        const auto update = transport::Unpack<v1::TrajectoryUpdate>(m);
+        if (!update) return false;
+        count(m, update->header().robot_id());  // closes a bundle; the certifier needs none
+        return true;
+    });
+    On(v1::LoopClosure::descriptor()->full_name(), [this, count](const transport::Message& m) {
+        const auto proto = transport::Unpack<v1::LoopClosure>(m);
+        const auto edge = proto ? FromProto(*proto) : std::nullopt;
+        if (!edge) return false;
+        count(m, proto->header().robot_id());
+        const auto it = pending_.find(int(proto->header().robot_id()));
+        if (it != pending_.end()) it->second.edges.push_back(*edge);
+        return true;
+    });
+    On(v1::PublicPoses::descriptor()->full_name(), [this, count](const transport::Message& m) {
+        const auto proto = transport::Unpack<v1::PublicPoses>(m);
+        auto block = proto ? FromProto(*proto) : std::nullopt;
+        const int robot = proto ? int(proto->header().robot_id()) : -1;
+        if (!block) return false;
+        const auto it = pending_.find(robot);
+        if (it == pending_.end()) return true;  // joined mid-bundle (or an escape): wait
+        count(m, proto->header().robot_id());
+        it->second.block = std::move(*block);
+        it->second.digest = BundleDigest(it->second);
+        auto& recent = history_[robot];
+        std::erase_if(recent, [&](const Bundle& b) { return b.digest == it->second.digest; });
+        recent.push_back(it->second);
+        if (recent.size() > kHistory) recent.erase(recent.begin());
+        // A re-sent bundle of an unchanged solution needs no new check.
+        const auto last = bundles_.find(robot);
+        const bool same = last != bundles_.end() && last->second.digest == it->second.digest;
+        bundles_[robot] = std::move(it->second);
+        pending_.erase(it);
+        dirty_ = dirty_ || !same;
+        if (waiting_) {
+            const v1::CertificateRound round = *waiting_;  // OnRound may reset waiting_
+            OnRound(round);
+        }
+        return true;
+    });
+}
+
 void CertifierActor::Tick() {
     ResendIfStalled();
-    if (config_.distributed || anchor_) RequestWhatIsMissing();
     if (!anchor_) return;
     const auto now = std::chrono::steady_clock::now();
     if (lanczos_ && !lanczos_->Done()) {
@@ -142,7 +205,7 @@ void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::M
     const auto Q = slam::ConnectionLaplacian(graph);
     const auto result = certify::Certify(Q, X, 3, config_.certificate);
     ++checks_;
-    NoteVerdict(result, bundles_);
+    NoteVerdict(result.status == certify::CertificateResult::Status::kCertified, bundles_);
     auto report = ToProto(result, static_cast<std::uint32_t>(X.rows()));
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     report.set_iteration(graph.edges.size());  // which graph: its edge count
@@ -159,7 +222,6 @@ void CertifierActor::Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::M
                             const std::map<int, Bundle>& bundles) {
     const auto escaped = certify::EscapeSaddle(Q, X, 3, v, gradient_tolerance);
     if (escaped.status != certify::EscapeResult::Status::kEscaped) return;
-    recheck_.reset();  // the solvers send bundles at the new rank (and are asked while missing)
     ++level_;
     ++escapes_;
     int column = 0;
@@ -209,7 +271,6 @@ void CertifierActor::SubscribeRounds() {
 }
 
 void CertifierActor::StartRound() {
-    recheck_.reset();
     v1::CertificateRound round;
     *round.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     // Unique across anchor restarts: wall-clock milliseconds, then a counter.
@@ -249,19 +310,17 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
     }
     for (int r : needed) ReadBundlesOf(r);
     std::map<int, const Bundle*> chosen;
-    missing_.clear();
     for (const auto& ref : round.bundles()) {
-        const int robot = int(ref.robot_id());
-        if (!anchor_ && !needed.count(robot)) continue;
-        for (const auto& candidate : history_[robot]) {
-            if (candidate.digest == ref.digest()) chosen[robot] = &candidate;
+        if (!anchor_ && !needed.count(int(ref.robot_id()))) continue;
+        const Bundle* b = nullptr;
+        for (const auto& candidate : history_[int(ref.robot_id())]) {
+            if (candidate.digest == ref.digest()) b = &candidate;
         }
-        if (!chosen.count(robot)) missing_.insert(robot);
-    }
-    if (!missing_.empty()) {  // not here yet (or never: the anchor will open another round)
-        waiting_ = round;
-        RequestBundles(missing_);
-        return;
+        if (b == nullptr) {  // not here yet (or never: the anchor will open another round)
+            waiting_ = round;
+            return;
+        }
+        chosen[int(ref.robot_id())] = b;
     }
     waiting_.reset();
     if (!chosen.count(RobotId())) return;
@@ -281,7 +340,6 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
     }
     round_progress_ = std::chrono::steady_clock::now();
     round_heard_ = false;
-    stall_requested_ = false;
     round_sent_.clear();
     const auto send_vector = [this](int step, const std::vector<slam::PoseId>& ids,
                                     const Eigen::VectorXd& values) {
@@ -391,7 +449,7 @@ void CertifierActor::RoundFinished() {
         dirty_ = true;
         return;
     }
-    NoteVerdict(*decided, round_bundles_);
+    NoteVerdict(decided->status == certify::CertificateResult::Status::kCertified, round_bundles_);
     auto report = ToProto(*decided, round_rank_);
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     report.set_iteration(round_edges_);  // which graph: its edge count

@@ -89,15 +89,9 @@ class CertifierActor final : public NodeActor {
   private:
     using Bundle = CertifierBundle;
     bool SettledSinceCertified() const;
-    void NoteVerdict(const certify::CertificateResult& result,
-                     const std::map<int, Bundle>& bundles);
+    void NoteVerdict(bool certified, const std::map<int, Bundle>& bundles);
     void SubscribeBundles();
     void ReadBundlesOf(int robot);
-    void OnBundleClosed(int robot);
-    void SendRequest(const std::set<int>& robots);
-    void RequestBundles(const std::set<int>& robots);
-    void RequestWhatIsMissing();
-    void RequestAfterVerdict(const std::set<int>& team, std::chrono::steady_clock::time_point now);
     void Tick();
     bool Assemble(slam::PoseGraph* graph, Eigen::MatrixXd* X) const {
         return Assemble(bundles_, graph, X);
@@ -122,26 +116,11 @@ class CertifierActor final : public NodeActor {
     CertifierConfig config_;
     bool anchor_ = false;
     transport::Endpoint* out_ = nullptr;
-    std::map<int, Bundle> pending_;  ///< bundles being received
-    /// when each pending bundle began (one begun long ago lost its end: asked for again)
-    std::map<int, std::chrono::steady_clock::time_point> pending_since_;
+    std::map<int, Bundle> pending_;               ///< bundles being received
     std::map<int, Bundle> bundles_;               ///< last complete bundle per robot
     std::map<int, std::vector<Bundle>> history_;  ///< recent distinct bundles, newest last
     std::map<int, Bundle> round_bundles_;         ///< anchor: the bundles of the round
     std::set<int> bundle_streams_;                ///< robots whose bundle stream it reads
-    /// A bundle asked for: when last, and how often since it last arrived.
-    struct Request {
-        std::chrono::steady_clock::time_point at{};
-        int count = 0;
-    };
-    /// robot -> its bundle's request (solvers send a bundle only when it changed: a stream read
-    /// late, or lost in a restart, is asked for, again after round_resend doubling each time)
-    std::map<int, Request> requested_;
-    /// anchor: the last verdict was not certified and no escape followed: every robot's current
-    /// bundle is asked for, backing off, until a new check opens (RequestAfterVerdict)
-    std::optional<Request> recheck_;
-    std::set<int> missing_;         ///< robots of waiting_ whose named bundle is not here
-    bool stall_requested_ = false;  ///< anchor: the stalled round's bundles were asked for
     std::unique_ptr<certify::LanczosParticipant> lanczos_;    ///< the round in progress
     std::uint64_t round_ = 0;                                 ///< its id
     std::uint64_t round_edges_ = 0;                           ///< edges of its graph

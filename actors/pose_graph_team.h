@@ -25,9 +25,7 @@ struct PoseGraphTeamResult {
     std::uint64_t bytes_between_robots = 0;               ///< every actor's bytes to peers
     std::map<std::string, std::uint64_t> bytes_by_actor;  ///< summed over robots
     std::map<int, std::uint64_t> bytes_by_robot;          ///< summed over actors
-    /// Of the certifiers' bytes: the solvers' bundles they received (summed over robots)
-    std::uint64_t certifier_bundle_bytes = 0;
-    double seconds = 0.0;  ///< wall time, start to done
+    double seconds = 0.0;                                 ///< wall time, start to done
     /// Wall time from the start until every robot's rounds had converged (or -1: never), and
     /// until robot 0's solver first heard a certified report (or -1)
     double seconds_to_converged = -1.0;

@@ -1,22 +1,13 @@
 // Solver actor: messages in -> SolverState; ticks -> block updates -> public poses out.
 #include "actors/solver_actor.h"
 
-#include <algorithm>
 #include <stdexcept>
 
-#include "actors/certifier_bundles.h"
 #include "actors/convert.h"
 #include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
 
 namespace certislam::actors {
-namespace {
-
-/// Requests arriving this close together get one re-send (every neighbour's certifier asks when
-/// a round opens).
-constexpr std::chrono::milliseconds kRequestWindow{10};
-
-}  // namespace
 
 void SolverActorConfig::Validate() const {
     solver.Validate();
@@ -103,15 +94,6 @@ void SolverActor::Subscribe() {
         const auto report = transport::Unpack<v1::CertificateReport>(m);
         if (!report) return false;
         report_ = *report;
-        return true;
-    });
-    On(v1::BundleRequest::descriptor()->full_name(), [this](const transport::Message& m) {
-        const auto request = transport::Unpack<v1::BundleRequest>(m);
-        if (!request) return false;
-        const auto& ids = request->robot_ids();
-        if (std::find(ids.begin(), ids.end(), std::uint32_t(RobotId())) == ids.end()) return true;
-        if (!bundle_requested_) requested_at_ = std::chrono::steady_clock::now();
-        bundle_requested_ = true;
         return true;
     });
 }
@@ -226,35 +208,15 @@ void SolverActor::Tick() {
     work_ = !local_ok_ && step.status != certify::SolverStepResult::Status::kStuck;
     // A step that moved the block is published (within publish_period) even when it ends below
     // tolerance: otherwise the team's last refinements travel only with the heartbeat.
-    // A rebuild can move the block without an RBCD step (a new frame: AlignToLowerRobot).
-    if (!local_ok_ || step.moved || step.rebuilt) bundle_dirty_ = true;
+    if (!local_ok_ || step.moved) bundle_dirty_ = true;
     if (!local_ok_ || step.rebuilt || step.moved) publish_pending_ = true;
     if (publish_pending_ &&
         std::chrono::steady_clock::now() - last_publish_ >= config_.publish_period) {
         Publish();
     }
-    if (BundleDue(std::chrono::steady_clock::now())) SendBundle();
+    const auto now = std::chrono::steady_clock::now();
+    if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
     UpdateSnapshot();
-}
-
-// A bundle goes out when it changed (at most every bundle_period) or a certifier asked for it;
-// never periodically: the certifiers keep what they heard and ask for what they miss
-// (CertifierActor::RequestWhatIsMissing). A request that arrives while the block is still
-// iterating stays pending and is answered with the converged bundle.
-bool SolverActor::BundleDue(std::chrono::steady_clock::time_point now) const {
-    if (!local_ok_) return false;
-    if (bundle_requested_ && now - requested_at_ >= kRequestWindow) return true;
-    return bundle_dirty_ && now - last_bundle_ >= config_.bundle_period;
-}
-
-// The digest a certifier computes of the bundle SendBundle would send now (CertifierBundle):
-// whatever changed the block or the own edges, a flag missed or not, shows here.
-std::uint64_t SolverActor::CurrentBundleDigest() const {
-    CertifierBundle bundle;
-    bundle.status.set_phase(v1::SolverStatus::PHASE_CONVERGED);
-    bundle.edges = state_.OwnEdges();
-    bundle.block = state_.FullBlock(0);
-    return BundleDigest(bundle);
 }
 
 void SolverActor::Publish() {
@@ -287,31 +249,26 @@ void SolverActor::Heartbeat() {
         }
         return;
     }
-    AnnounceNeighbours();
-    // Converged synchronous rounds: the peers have these poses from the last round and take no
-    // asynchronous ones; re-sending them every heartbeat was most of a solve's solver bytes.
-    if (!InRounds() || !rounds_converged_ || publish_pending_) Publish();
+    Publish();
     for (const auto& loop :
          config_.rebroadcast_loops ? state_.InterRobotLoops() : std::vector<slam::LoopClosure>{}) {
         auto proto = ToProto(loop);  // late or restarted peers learn the loops they missed
         *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
         Send(*poses_out_, transport::Pack(proto), true);
     }
-    // A converged bundle that differs from the last one sent goes out even where no step
-    // flagged it: the certifiers re-check only on a changed bundle (or when they ask).
-    const bool unsent = IsFinal() && CurrentBundleDigest() != sent_digest_;
-    if (local_ok_ && (bundle_dirty_ || bundle_requested_ || unsent)) SendBundle();
-    if (local_ok_) SendTrajectory();  // the mapper's, when the poses or the verdict changed
+    const auto now = std::chrono::steady_clock::now();
+    if (local_ok_ && (bundle_dirty_ || now - last_bundle_ > std::chrono::seconds(1))) SendBundle();
     work_ = work_ || !local_ok_;
     UpdateSnapshot();
 }
 
 void SolverActor::SendBundle() {
+    bool final = keyframes_ended_;
+    for (int r : Wiring().robots) final = final && loops_ended_.count(r) > 0;
     // Status, own edges, then the full block that closes the bundle: only once this robot is
     // final. The certifiers check only when every robot is (CertifierActor::Assemble), so an
     // earlier bundle would be bytes for nothing.
-    bool sent = true;
-    if (IsFinal()) {
+    if (final) {
         v1::SolverStatus status;
         *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
         status.set_iteration(steps_);
@@ -319,53 +276,25 @@ void SolverActor::SendBundle() {
         status.set_rank_r(static_cast<std::uint32_t>(state_.Rank()));
         status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
         status.set_gradient_norm(grad_norm_);
-        sent = Send(*bundle_out_, transport::Pack(status), false);
+        Send(*bundle_out_, transport::Pack(status), false);
         for (const auto& edge : state_.OwnEdges()) {
             auto proto = ToProto(edge);
             *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-            sent = Send(*bundle_out_, transport::Pack(proto), false) && sent;
+            Send(*bundle_out_, transport::Pack(proto), false);
         }
         auto block = ToProto(state_.FullBlock(steps_));
         *block.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-        sent = Send(*bundle_out_, transport::Pack(block), false) && sent;
-        // A bundle cut short by a full queue is sent again at the next heartbeat.
-        if (sent) sent_digest_ = CurrentBundleDigest();
+        Send(*bundle_out_, transport::Pack(block), false);
     }
-    bundle_dirty_ = !sent;
-    bundle_requested_ = false;
-    last_bundle_ = std::chrono::steady_clock::now();
-    SendTrajectory();
-}
-
-// The robots sharing an edge with this one, on the bundle stream when they change: the
-// certifiers (this robot's) read their bundle streams before a round needs their bundles.
-void SolverActor::AnnounceNeighbours() {
-    std::set<int> neighbours = state_.Neighbours();
-    if (neighbours == announced_) return;
-    announced_ = std::move(neighbours);
-    v1::SolverStatus status;
-    *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-    status.set_phase(v1::SolverStatus::PHASE_ITERATING);
-    status.set_rank_r(static_cast<std::uint32_t>(state_.Rank()));
-    status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
-    for (int r : announced_) status.add_neighbor_robots(static_cast<std::uint32_t>(r));
-    Send(*bundle_out_, transport::Pack(status), false);
-}
-
-// The rounded trajectory for the mapper (certifiers ignore it), when it differs from the last
-// one sent: the poses move with the block and with the anchor robot's pose 0.
-void SolverActor::SendTrajectory() {
-    if (state_.NumPoses() == 0) return;
+    // After the bundle: the rounded trajectory for the mapper (the certifier ignores it).
     int anchor = RobotId();
     const auto poses = state_.Trajectory(certify::ComponentAnchor(RobotId(), team_loops_), &anchor);
     const bool certified = report_ && report_->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
-    auto trajectory = TrajectoryToProto(RobotId(), poses, certified, 0);
-    std::string contents = trajectory.SerializeAsString();
-    if (contents == last_trajectory_) return;
-    last_trajectory_ = std::move(contents);
-    trajectory.set_iteration(steps_);
+    auto trajectory = TrajectoryToProto(RobotId(), poses, certified, steps_);
     *trajectory.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     Send(*bundle_out_, transport::Pack(trajectory), false);
+    bundle_dirty_ = false;
+    last_bundle_ = std::chrono::steady_clock::now();
 }
 
 void SolverActor::UpdateSnapshot() {

@@ -109,11 +109,7 @@ class SolverActor final : public NodeActor {
     void SendRoundSums(std::uint64_t round, double cost, double grad_norm);
     void OnRoundSums(const v1::SolverStatus& status);
     void Heartbeat();
-    bool BundleDue(std::chrono::steady_clock::time_point now) const;
-    std::uint64_t CurrentBundleDigest() const;
     void SendBundle();
-    void SendTrajectory();
-    void AnnounceNeighbours();
     void Publish();
     void UpdateSnapshot();
     void Changed();
@@ -134,13 +130,6 @@ class SolverActor final : public NodeActor {
     bool work_ = true;  ///< something changed since the last step
     bool local_ok_ = false;
     bool bundle_dirty_ = true;
-    /// A certifier asked for the current bundle (BundleRequest) at requested_at_: answered once
-    /// for every request within kRequestWindow (one re-send reaches every subscriber).
-    bool bundle_requested_ = false;
-    std::chrono::steady_clock::time_point requested_at_{};
-    std::uint64_t sent_digest_ = 0;  ///< BundleDigest of the last bundle sent (0: none yet)
-    std::string last_trajectory_;    ///< the last TrajectoryUpdate sent, without its header
-    std::set<int> announced_;        ///< neighbours last announced on the bundle stream
     std::uint64_t steps_ = 0;
     double grad_norm_ = 0.0;
     std::chrono::steady_clock::time_point last_bundle_{};

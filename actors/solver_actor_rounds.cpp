@@ -127,7 +127,6 @@ void SolverActor::SyncTick() {
         rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()), rc);
         rounds_level_ = state_.StaircaseLevel();
         local_ok_ = false;  // an asynchronous phase's convergence says nothing of the rounds
-        AnnounceNeighbours();
         if (rounds_level_ == 0) state_.LocalChordalStart();
         for (const auto& p : early_poses_) {
             if (p.staircase_level == rounds_level_ && !p.ids.empty() &&
@@ -144,7 +143,8 @@ void SolverActor::SyncTick() {
     AdvanceRounds();
     work_ = false;
     if (publish_pending_) Publish();
-    if (BundleDue(std::chrono::steady_clock::now())) SendBundle();
+    const auto now = std::chrono::steady_clock::now();
+    if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
     UpdateSnapshot();
 }
 

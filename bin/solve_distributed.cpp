@@ -70,9 +70,7 @@ nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots,
                         {"restarts", r.restarts},
                         {"central_fallbacks", r.fallbacks},
                         {"bytes_between_robots",
-                         {{"total", r.bytes_between_robots},
-                          {"by_actor", r.bytes_by_actor},
-                          {"certifier_bundles_received", r.certifier_bundle_bytes}}},
+                         {{"total", r.bytes_between_robots}, {"by_actor", r.bytes_by_actor}}},
                         {"peak_rss_mb", PeakRssMb()},
                         {"robots", robots}};
     nlohmann::json by_robot = nlohmann::json::object(), steps = nlohmann::json::object();

@@ -203,8 +203,6 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
             r.bytes_by_robot[robot] += n;
             r.bytes_between_robots += n;
         }
-        const auto between = Field<nlohmann::json>(j, "bytes_between_robots", robot);
-        r.certifier_bundle_bytes += between.value("certifier_bundles_received", std::uint64_t{0});
         r.seconds = std::max(r.seconds, Field<double>(j, "seconds", robot));
         r.escapes += Field<int>(j, "escapes", robot);
         sync = sync && Field<std::string>(j, "solver_mode", robot) == "synchronous";

@@ -152,8 +152,8 @@ struct ObjectiveShare {
 };
 
 /// f(X) = tr(X Q X^T) over columns [begin, end) of Q (Q symmetric; X r x Q.rows()), summed in
-/// quadruple precision: the Laplacian form cancels terms of size |X|^T |Q| |X| (10^15 on
-/// kitti_08), so in doubles its own error would be tens of times the floor.
+/// quadruple precision: the Laplacian form cancels terms of size |X|^T |Q| |X|, so summed in
+/// doubles its own error would exceed the floor below.
 ObjectiveShare ObjectiveOfColumns(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
                                   Eigen::Index begin, Eigen::Index end);
 

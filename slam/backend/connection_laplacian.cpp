@@ -58,7 +58,7 @@ double Objective(const PoseGraph& graph, const PoseMatrix& poses) {
         // ||R_j - R_i R~||^2 with ||R_i R~||^2 taken as ||R_i||^2 (= d for a rotation), as
         // SE-Sync's Q does: identical when R~ is orthogonal, and the f* convention otherwise.
         // Written as the square plus ||R_i||^2 - ||R_i R~||^2 = <R_i^T R_i, I - R~ R~^T>, so no
-        // term of size ||R||^2 cancels (kitti_08, f* = 0, printed -2e-7 that way).
+        // term of size ||R||^2 cancels (on an f* = 0 graph the cancelled form can go negative).
         const Eigen::MatrixXd RiRt = Ri * e.R;
         const Eigen::MatrixXd defect = Eigen::MatrixXd::Identity(d, d) - e.R * e.R.transpose();
         const double rot =

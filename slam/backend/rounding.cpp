@@ -10,8 +10,8 @@ namespace certislam::slam {
 
 namespace {
 
-// The nearest rotation by a fixed-size SVD: the d = 2, 3 cases, rounded for every pose of every
-// snapshot, run several times faster than the dynamic-size decomposition below.
+// The nearest rotation by a fixed-size SVD for d = 2, 3 (every pose of every snapshot is
+// rounded): no heap allocation, unlike the dynamic-size decomposition below.
 template <int D>
 Eigen::MatrixXd ProjectFixed(const Eigen::MatrixXd& M) {
     using Mat = Eigen::Matrix<double, D, D>;

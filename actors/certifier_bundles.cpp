@@ -1,7 +1,10 @@
 // Certifier bundles: digests (FNV-1a), the joint graph, a robot's round share, re-send memory.
 #include "actors/certifier_bundles.h"
 
+#include <Eigen/Core>
+#include <algorithm>
 #include <iterator>
+#include <tuple>
 
 #include "certislam/v1/certificate.pb.h"
 #include "slam/core/loop_closure.h"
@@ -50,6 +53,19 @@ std::uint64_t GraphDigest(const CertifierBundle& b) {
     const Eigen::Index rank = b.block.blocks.rows();
     Mix(&h, &rank, sizeof(rank));
     MixEdges(&h, b.edges);
+    return h;
+}
+
+std::uint64_t EdgesDigest(std::vector<slam::LoopClosure> edges) {
+    std::sort(edges.begin(), edges.end(), [](const auto& x, const auto& y) {
+        const auto key = [](const slam::LoopClosure& e) {
+            const Eigen::Vector3d t = e.T_a_b.translation();
+            return std::make_tuple(e.a, e.b, e.kappa, e.tau, t.x(), t.y(), t.z());
+        };
+        return key(x) < key(y);
+    });
+    std::uint64_t h = 14695981039346656037ull;
+    MixEdges(&h, edges);
     return h;
 }
 

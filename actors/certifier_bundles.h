@@ -30,6 +30,10 @@ std::uint64_t BundleDigest(const CertifierBundle& b);
 /// Hash of the graph a bundle describes: pose ids, rank and edges (not the block's values).
 std::uint64_t GraphDigest(const CertifierBundle& b);
 
+/// Hash of an edge set in (a, b, weights, translation) order: equal for one graph whatever order
+/// its edges came in.
+std::uint64_t EdgesDigest(std::vector<slam::LoopClosure> edges);
+
 /// The joint graph and X of `bundles`; false unless there is one per robot of the team
 /// (`team_size`), every robot is final at one rank with its block covering its poses, and every
 /// edge's ends are known.

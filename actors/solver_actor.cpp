@@ -35,11 +35,7 @@ void SolverActor::OnStart() {
     poses_out_ = &OpenServer(Edge::kPoses);
     bundle_out_ = &OpenServer(Edge::kBundle);
     Subscribe();
-    if (!config_.log_path.empty()) {
-        // Loops accepted before a restart (some found by peers that will not send them again).
-        for (const auto& m : ReadDurableLog(config_.log_path).messages) OnLoop(m, true);
-        log_ = std::make_unique<DurableLog>(config_.log_path, config_.log_identity);
-    }
+    if (!config_.log_path.empty()) Replay();
     Every(config_.tick, [this] { Tick(); });
     Every(config_.heartbeat, [this] { Heartbeat(); });
     UpdateSnapshot();
@@ -94,6 +90,7 @@ void SolverActor::Subscribe() {
         const auto report = transport::Unpack<v1::CertificateReport>(m);
         if (!report) return false;
         report_ = *report;
+        UpdateSnapshot();
         return true;
     });
 }
@@ -179,12 +176,15 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
 }
 
 void SolverActor::Changed() {
+    if (restored_) report_.reset();  // the checkpoint's report is of the graph before this change
+    restored_ = false;
     work_ = true;
     bundle_dirty_ = true;
     changed_ = std::chrono::steady_clock::now();
 }
 
 void SolverActor::Tick() {
+    TryRestore();
     if (InRounds()) {
         SyncTick();
         return;
@@ -298,6 +298,7 @@ void SolverActor::SendBundle() {
 }
 
 void SolverActor::UpdateSnapshot() {
+    MaybeCheckpoint();
     SolverSnapshot s;
     s.num_poses = state_.NumPoses();
     s.final = keyframes_ended_;
@@ -320,6 +321,7 @@ void SolverActor::UpdateSnapshot() {
     s.restarts = rounds_restarts_ + (rounds_ ? rounds_->Restarts() : 0);
     s.rounds_converged = rounds_converged_;
     s.rounds_gave_up = rounds_gave_up_;
+    s.restored = restored_;
     std::lock_guard lock(snapshot_mutex_);
     snapshot_ = std::move(s);
 }

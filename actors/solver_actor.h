@@ -11,6 +11,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "actors/durable_log.h"
@@ -77,6 +78,9 @@ struct SolverSnapshot {
     int restarts = 0;               ///< adaptive restarts of those rounds
     bool rounds_converged = false;  ///< the rounds reached the team's gradient tolerance
     bool rounds_gave_up = false;    ///< the rounds hit max_rounds: asynchronous updates took over
+    /// The certified state came from the durable log's checkpoint (a restart after the team
+    /// certified), not from a round of this run.
+    bool restored = false;
 };
 
 /// One robot's RBCD solver.
@@ -113,6 +117,9 @@ class SolverActor final : public NodeActor {
     void Publish();
     void UpdateSnapshot();
     void Changed();
+    void Replay();           ///< durable log: loops, and the last checkpoint kept for later
+    void MaybeCheckpoint();  ///< a certified final state not logged yet: logged
+    void TryRestore();       ///< the kept checkpoint, once the replayed graph is its graph
 
     SolverActorConfig config_;
     certify::SolverState state_;
@@ -151,6 +158,11 @@ class SolverActor final : public NodeActor {
     std::chrono::steady_clock::time_point last_round_progress_{};
 
     std::unique_ptr<DurableLog> log_;
+    std::optional<v1::SolverCheckpoint> checkpoint_;  ///< replayed, not restored yet
+    /// (steps, report's graph, objective, lambda_min, poses) of the last checkpoint appended
+    std::tuple<std::uint64_t, std::uint64_t, double, double, int> checkpoint_key_{};
+    bool restored_ = false;  ///< state from the checkpoint; cleared by any change
+    std::chrono::steady_clock::time_point restore_checked_{};  ///< changed_ at the last check
     mutable std::mutex snapshot_mutex_;
     SolverSnapshot snapshot_;
 };

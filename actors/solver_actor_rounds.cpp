@@ -115,6 +115,12 @@ void SolverActor::AdvanceRounds() {
 // asynchronous steps from there, Tick's usual path).
 void SolverActor::SyncTick() {
     if (!IsFinal() || state_.NumPoses() == 0) return;
+    if (restored_) {  // the certified rounds' result came from the log: no peer to sweep with
+        if (publish_pending_) Publish();
+        if (bundle_dirty_) SendBundle();
+        UpdateSnapshot();
+        return;
+    }
     if (rounds_ && rounds_level_ != state_.StaircaseLevel()) {
         rounds_restarts_ += rounds_->Restarts();
         rounds_.reset();  // a saddle escape: new rounds from the adopted block

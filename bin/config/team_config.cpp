@@ -206,7 +206,8 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
                    {"keyframes", s.num_poses},
                    {"anchor", s.anchor},
                    {"inter_robot_loops", s.inter_robot_loops},
-                   {"staircase_level", s.staircase_level}};
+                   {"staircase_level", s.staircase_level},
+                   {"restored_from_log", s.restored}};
         Evaluate(source, robots[k], s, &robot);
         if (k < meshes.size() && !meshes[k].is_null()) robot["mesh"] = meshes[k];
         report["robots"].push_back(robot);

@@ -3,6 +3,7 @@
 #include "certify/pipeline/solver_state.h"
 
 #include <algorithm>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 
@@ -32,10 +33,9 @@ Eigen::MatrixXd Lift(const Eigen::Isometry3d& T, int r) {
 
 /// T with its rotation projected onto SO(3): a prediction through a loop whose measured R~ is not
 /// a rotation (merged parallel edges, slam::MergeParallelEdges) stays a pose.
-Eigen::Isometry3d Rigid(const Eigen::Isometry3d& T) {
-    Eigen::Isometry3d out = T;
-    out.linear() = slam::ProjectToRotation(T.linear());
-    return out;
+Eigen::Isometry3d Rigid(Eigen::Isometry3d T) {
+    T.linear() = slam::ProjectToRotation(Eigen::Matrix3d(T.linear()));
+    return T;
 }
 
 bool SameEnds(const slam::LoopClosure& x, const slam::LoopClosure& y) {
@@ -423,6 +423,17 @@ PoseBlocks SolverState::FullBlock(std::uint64_t iteration) const {
     return out;
 }
 
+PoseBlocks SolverState::NeighbourBlocks() const {
+    const Impl& m = *impl_;
+    PoseBlocks out{{}, Eigen::MatrixXd(m.rank, kBlock * int(m.nbr.size())), 0, m.staircase_level};
+    int k = 0;
+    for (const auto& [id, block] : m.nbr) {
+        out.ids.push_back(id);
+        out.blocks.middleCols(kBlock * k++, kBlock) = AtRank(block, m.rank);
+    }
+    return out;
+}
+
 std::vector<Eigen::Isometry3d> SolverState::Trajectory(int anchor, int* anchor_used) const {
     const Impl& m = *impl_;
     std::vector<Eigen::Isometry3d> out;
@@ -476,9 +487,8 @@ std::vector<slam::LoopClosure> SolverState::OwnEdges() const {
         e.tau = m.OdomTau();
         out.push_back(e);
     }
-    for (const auto& l : m.loops) {
-        if (m.Own(l.a) && m.Active(l)) out.push_back(l);
-    }
+    std::copy_if(m.loops.begin(), m.loops.end(), std::back_inserter(out),
+                 [&m](const slam::LoopClosure& l) { return m.Own(l.a) && m.Active(l); });
     return out;
 }
 

@@ -105,6 +105,9 @@ class SolverState {
     PoseBlocks PublicPoses(std::uint64_t iteration) const;
     /// The whole own block (r x 4n) with own ids.
     PoseBlocks FullBlock(std::uint64_t iteration) const;
+    /// Every neighbour block held, at the current rank, in id order: all that Step and
+    /// Trajectory read of the other robots.
+    PoseBlocks NeighbourBlocks() const;
     /// Own poses rounded and expressed in the frame of `anchor`'s pose 0 when its lifted pose is
     /// known (own pose 0 otherwise); `*anchor_used` tells which robot anchored them. Caches its
     /// last answer (one caller thread, as everything here).

@@ -19,7 +19,10 @@
 #include <utility>
 #include <vector>
 
+#include "actors/durable_log.h"
+#include "certislam/v1/loop_closure.pb.h"
 #include "tests/integration/shell.h"
+#include "transport/message.h"
 
 namespace certislam {
 namespace {
@@ -253,6 +256,64 @@ TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum)
             << out0 << "\nrobot 1 (restarted):\n"
             << run.out;
     }
+}
+
+// The team certified and left; robot 1 then restarts alone from its durable log. It replays the
+// same graph and ends certified with the checkpointed state, equal to the team's result, instead
+// of waiting for peers that are gone until its timeout (exit 3).
+TEST_F(Distributed, RobotRestartedAfterItsTeamLeftEndsWithTheCertifiedStateOfItsLog) {
+    for (int r = 0; r < 2; ++r) {
+        ASSERT_EQ(testing::Shell(Binary() + " keygen --out " +
+                                 (dir_ / ("robot" + std::to_string(r))).string())
+                      .exit_code,
+                  0);
+    }
+    const std::string config = WriteConfig();
+    const std::string robot =
+        Binary() + " robot " + config + " --json --log-dir " + (dir_ / "logs").string() + " --id ";
+    const auto team =
+        testing::Shell("(" + robot + "0 --timeout 120 --out " + (dir_ / "team").string() + " > " +
+                       (dir_ / "r0.log").string() + " 2>&1) & " + robot + "1 --timeout 120 --out " +
+                       (dir_ / "team").string() + " 2>&1; rc1=$?; wait; exit $rc1");
+    ASSERT_EQ(team.exit_code, 0) << team.out;
+    EXPECT_NE(team.out.find("\"restored_from_log\": false"), std::string::npos) << team.out;
+
+    // Alone: no peer answers, so only the log can end it before the timeout.
+    const auto alone =
+        testing::Shell(robot + "1 --timeout 60 --out " + (dir_ / "alone").string() + " 2>&1");
+    ASSERT_EQ(alone.exit_code, 0) << alone.out;
+    EXPECT_NE(alone.out.find("\"certified\": true"), std::string::npos) << alone.out;
+    EXPECT_NE(alone.out.find("\"restored_from_log\": true"), std::string::npos) << alone.out;
+    EXPECT_LT(MaxDifference((dir_ / "team" / "robot1.tum").string(),
+                            (dir_ / "alone" / "robot1.tum").string()),
+              kEqualTolerance)
+        << "team:\n"
+        << team.out << "\nalone:\n"
+        << alone.out;
+
+    // A log whose graph differs from its checkpoint's (an inter-robot loop taken out, which the
+    // robot cannot find again alone) is not restored: the robot waits for its peers again and
+    // says so at its timeout.
+    const std::string loops_log = (dir_ / "logs" / "robot1.loops.log").string();
+    const actors::DurableLogRead read = actors::ReadDurableLog(loops_log);
+    std::filesystem::remove(loops_log);
+    {
+        actors::DurableLog rewritten(loops_log, read.identity);
+        bool dropped = false;
+        for (const auto& m : read.messages) {
+            const auto loop = transport::Unpack<v1::LoopClosure>(m);
+            if (!dropped && loop && loop->pose_a().robot_id() != loop->pose_b().robot_id()) {
+                dropped = true;
+                continue;
+            }
+            rewritten.Append(m);
+        }
+        ASSERT_TRUE(dropped);
+    }
+    const auto changed =
+        testing::Shell(robot + "1 --timeout 8 --out " + (dir_ / "changed").string() + " 2>&1");
+    EXPECT_EQ(changed.exit_code, 3) << changed.out;
+    EXPECT_NE(changed.out.find("\"restored_from_log\": false"), std::string::npos) << changed.out;
 }
 
 TEST_F(Distributed, BadConfigurationFailsNamingTheField) {

@@ -2,8 +2,10 @@
 #include "actors/pose_graph_actor.h"
 
 #include <chrono>
+#include <set>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "actors/convert.h"
 #include "actors/streams.h"
@@ -26,6 +28,9 @@ PoseGraphActor::PoseGraphActor(zmq::context_t& context, TeamWiring wiring, slam:
                                     std::to_string(graph_.robot) + " given to robot " +
                                     std::to_string(RobotId()));
     }
+    std::set<std::pair<slam::PoseId, slam::PoseId>> ends;
+    for (const auto& edge : graph_.inter) ends.insert({edge.a, edge.b});
+    inter_ends_ = ends.size();
 }
 
 void PoseGraphActor::OnStart() {
@@ -87,6 +92,7 @@ void PoseGraphActor::SendEnds() {
         v1::Shutdown end;
         *end.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
         end.set_reason(kEndOfLoops);
+        end.set_count(inter_ends_);  // a solver holding fewer waits for the re-sent ones
         Send(*loops_out_, transport::Pack(end), true);
     }
 }

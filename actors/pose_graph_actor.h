@@ -38,6 +38,7 @@ class PoseGraphActor final : public NodeActor {
     transport::Endpoint* loops_out_ = nullptr;
     std::size_t keyframe_subscribers_ = 0;  ///< subscribers when the block last went out
     std::size_t loop_subscribers_ = 0;      ///< subscribers when the edges last went out
+    std::size_t inter_ends_ = 0;            ///< distinct ends of the inter-robot edges
     bool block_sent_ = false;
     bool edges_sent_ = false;
     std::atomic<bool> finished_{false};

@@ -68,8 +68,11 @@ void SolverActor::Subscribe() {
             bundle_dirty_ = bundle_dirty_ || !keyframes_ended_;
             keyframes_ended_ = true;
         }
-        if (end->reason() == kEndOfLoops &&
-            loops_ended_.insert(int(end->header().robot_id())).second) {
+        // A counted end holds once every loop it counts is in: a late subscriber can hear the
+        // repeated marker before the re-sent loops.
+        const int from = int(end->header().robot_id());
+        if (end->reason() == kEndOfLoops && end->count() <= loops_heard_[from].size() &&
+            loops_ended_.insert(from).second) {
             bundle_dirty_ = true;
         }
         return true;
@@ -129,6 +132,7 @@ bool SolverActor::OnLoop(const transport::Message& m, bool replayed) {
     }
     const auto loop = FromProto(*proto);
     if (!loop) return false;
+    loops_heard_[int(proto->header().robot_id())].insert({loop->a, loop->b});
     if (!NewVerdict({loop->a, loop->b}, version, true)) return true;
     if (state_.AddLoop(*loop)) {
         Changed();

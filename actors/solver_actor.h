@@ -126,8 +126,10 @@ class SolverActor final : public NodeActor {
     transport::Endpoint* poses_out_ = nullptr;
     transport::Endpoint* bundle_out_ = nullptr;
     std::vector<std::int64_t> stamps_ns_;
-    std::map<int, double> team_cost_;            ///< robot -> its share of f, last heard
-    std::set<int> loops_ended_;                  ///< matchers that said end of loops
+    std::map<int, double> team_cost_;  ///< robot -> its share of f, last heard
+    std::set<int> loops_ended_;        ///< matchers that said end of loops
+    /// sender -> ends of the loops it sent (what a counted end-of-loops marker is checked against)
+    std::map<int, std::set<std::pair<slam::PoseId, slam::PoseId>>> loops_heard_;
     std::vector<slam::LoopClosure> team_loops_;  ///< every inter-robot loop heard (team frame)
     std::set<std::pair<slam::PoseId, slam::PoseId>> team_loop_ends_;
     /// Loop ends -> (newest matcher verdict version, accepted): withdrawals win over older

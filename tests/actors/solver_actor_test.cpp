@@ -3,7 +3,9 @@
 // certifier broadcasts a CERTIFIED verdict to both; a silent third robot stops nobody.
 #include <gtest/gtest.h>
 
+#include <set>
 #include <thread>
+#include <utility>
 
 #include "actors/certifier_actor.h"
 #include "actors/solver_actor.h"
@@ -68,6 +70,39 @@ TEST(SolverActor, TwoRobotsOverInprocReachTheCertifiedCentralOptimum) {
         EXPECT_EQ(solvers[r]->Counters().dropped_malformed, 0u);
         EXPECT_GT(solvers[r]->BytesSentToPeers(), 0u);
     }
+}
+
+// A pose-graph source re-sends its loops to a subscriber that joined late, and repeats its end
+// marker: the marker can come first. A counted end is not the end until the loops it counts are in.
+TEST(SolverActor, CountedEndOfLoopsWaitsForTheLoopsItCounts) {
+    const TwoRobotProblem problem = MakeTwoRobotProblem(20, 4, 3);
+    zmq::context_t context;
+    const std::vector<int> robots{0, 1};
+    std::vector<std::unique_ptr<SolverActor>> solvers;
+    for (int r : robots) {
+        solvers.push_back(
+            std::make_unique<SolverActor>(context, InprocWiring(r, robots), Config(problem)));
+    }
+    for (auto& s : solvers) s->Start();
+    Feeder feeder(context, robots, 2);
+    feeder.FeedKeyframes(problem);
+    feeder.FeedLoopEnds(problem, true);
+    const auto all_keyframes = [&] {
+        return solvers[0]->Snapshot().num_poses == 20 && solvers[1]->Snapshot().num_poses == 20;
+    };
+    ASSERT_TRUE(WaitFor(all_keyframes));
+    // The markers had time to arrive (inproc): a solver that took them as the end would be final
+    // without a single loop.
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    for (auto& s : solvers) EXPECT_FALSE(s->Snapshot().final);
+
+    feeder.FeedLoops(problem);
+    feeder.FeedLoopEnds(problem, true);  // the source repeats its markers
+    ASSERT_TRUE(
+        WaitFor([&] { return solvers[0]->Snapshot().final && solvers[1]->Snapshot().final; }));
+    std::set<std::pair<slam::PoseId, slam::PoseId>> ends;  // parallel loops merge
+    for (const auto& l : problem.loops) ends.insert({l.a, l.b});
+    for (auto& s : solvers) EXPECT_EQ(s->Snapshot().inter_robot_loops, int(ends.size()));
 }
 
 TEST(SolverActor, SilentNeighbourDoesNotStopTheOthers) {

@@ -6,6 +6,8 @@
 
 #include <Eigen/Geometry>
 #include <memory>
+#include <set>
+#include <utility>
 #include <vector>
 
 #include "actors/convert.h"
@@ -40,6 +42,12 @@ class Feeder {
         }
     }
     void Feed(const TwoRobotProblem& p) {
+        FeedKeyframes(p);
+        FeedLoops(p);
+        FeedLoopEnds(p, false);
+    }
+    /// Every robot's keyframes (empty clouds) and its end of keyframes.
+    void FeedKeyframes(const TwoRobotProblem& p) {
         for (size_t r = 0; r < p.odometry.size(); ++r) {
             for (size_t i = 0; i < p.odometry[r].size(); ++i) {
                 slam::Keyframe kf;
@@ -52,13 +60,29 @@ class Feeder {
             }
             keyframes_[r]->Send(End(static_cast<int>(r), kEndOfKeyframes));
         }
+    }
+    /// Every loop, on the loop stream of its head's robot.
+    void FeedLoops(const TwoRobotProblem& p) {
         for (const auto& loop : p.loops) {
             auto proto = ToProto(loop);
             *proto.mutable_header() = MakeHeader(loop.b.robot, 1, 0);
             loops_[loop.b.robot]->Send(transport::Pack(proto));
         }
+    }
+    /// Every robot's end of loops; `counted`: with the number of loops its stream carries.
+    void FeedLoopEnds(const TwoRobotProblem& p, bool counted) {
         for (size_t r = 0; r < loops_.size(); ++r) {
-            loops_[r]->Send(End(static_cast<int>(r), kEndOfLoops));
+            auto end = End(static_cast<int>(r), kEndOfLoops);
+            if (counted) {  // distinct ends, as a pose-graph source counts them
+                std::set<std::pair<slam::PoseId, slam::PoseId>> ends;
+                for (const auto& l : p.loops) {
+                    if (l.b.robot == int(r)) ends.insert({l.a, l.b});
+                }
+                v1::Shutdown proto = *transport::Unpack<v1::Shutdown>(end);
+                proto.set_count(ends.size());
+                end = transport::Pack(proto);
+            }
+            loops_[r]->Send(end);
         }
     }
 

@@ -245,11 +245,11 @@ void SolverActor::Heartbeat() {
     if (state_.NumPoses() == 0) return;
     const bool in_rounds = InRounds() && !rounds_converged_;
     if (in_rounds) {
-        // Rounds stalled for a heartbeat: a peer may have joined late; re-send the last round's
-        // messages (receivers keep one copy per round).
+        // Rounds stalled for a heartbeat: a peer may have joined late or lost a message; re-send
+        // the last two rounds' messages (receivers keep one copy per round).
         if (std::chrono::steady_clock::now() - last_round_progress_ >= config_.heartbeat) {
-            if (last_round_poses_) Send(*poses_out_, transport::Pack(*last_round_poses_), true);
-            if (last_round_sums_) Send(*poses_out_, transport::Pack(*last_round_sums_), true);
+            for (const auto& p : last_round_poses_) Send(*poses_out_, transport::Pack(p), true);
+            for (const auto& s : last_round_sums_) Send(*poses_out_, transport::Pack(s), true);
         }
         return;
     }

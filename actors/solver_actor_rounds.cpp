@@ -7,6 +7,18 @@
 #include "actors/streams.h"
 
 namespace certislam::actors {
+namespace {
+
+/// Keeps a round's message and the one before it: a robot can be one round behind its peers (it
+/// decides a round only with every robot's sums of it), so a message it lost in the round before
+/// the sender's last is still needed, and the sender re-sends only what it keeps.
+template <typename T>
+void KeepLastTwo(std::vector<T>* kept, T message) {
+    kept->push_back(std::move(message));
+    if (kept->size() > 2) kept->erase(kept->begin());
+}
+
+}  // namespace
 
 bool SolverActor::IsFinal() const {
     bool final = keyframes_ended_;
@@ -24,7 +36,7 @@ void SolverActor::SendRoundPoses(std::uint64_t round) {
     auto proto = ToProto(poses);
     *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     Send(*poses_out_, transport::Pack(proto), true);
-    last_round_poses_ = std::move(proto);
+    KeepLastTwo(&last_round_poses_, std::move(proto));
 }
 
 void SolverActor::SendRoundSums(std::uint64_t round, double cost, double grad_norm) {
@@ -39,7 +51,7 @@ void SolverActor::SendRoundSums(std::uint64_t round, double cost, double grad_no
     status.set_team_round(round + 1);
     status.set_staircase_level(static_cast<std::uint32_t>(state_.StaircaseLevel()));
     Send(*poses_out_, transport::Pack(status), true);
-    last_round_sums_ = std::move(status);
+    KeepLastTwo(&last_round_sums_, std::move(status));
 }
 
 void SolverActor::OnRoundSums(const v1::SolverStatus& status) {

@@ -42,13 +42,20 @@ void Print(const std::vector<Row>& rows, bool json) {
     if (json) {
         nlohmann::json j = nlohmann::json::array();
         for (const Row& r : rows) {
-            j.push_back({{"file", r.file},           {"solver", r.solver},
-                         {"converged", r.converged}, {"lambda_min", r.lambda},
-                         {"central", r.reference},   {"q_norm", r.q_norm},
-                         {"residual", r.residual},   {"iterations", r.iterations},
-                         {"products", r.products},   {"exchanges", r.exchanges},
-                         {"reductions", r.reductions}, {"entries", r.entries},
-                         {"scalars_per_robot", r.scalars}, {"seconds", r.seconds}});
+            j.push_back({{"file", r.file},
+                         {"solver", r.solver},
+                         {"converged", r.converged},
+                         {"lambda_min", r.lambda},
+                         {"central", r.reference},
+                         {"q_norm", r.q_norm},
+                         {"residual", r.residual},
+                         {"iterations", r.iterations},
+                         {"products", r.products},
+                         {"exchanges", r.exchanges},
+                         {"reductions", r.reductions},
+                         {"entries", r.entries},
+                         {"scalars_per_robot", r.scalars},
+                         {"seconds", r.seconds}});
         }
         std::printf("%s\n", j.dump().c_str());
         return;
@@ -58,11 +65,11 @@ void Print(const std::vector<Row>& rows, bool json) {
         "iterations | S v products | exchanges | reductions | MB of v sent | scalars reduced "
         "per robot | wall s |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const Row& r : rows) {
-        std::printf("| %s | %s | %s | %.3e | %.3e | %.1e | %d | %d | %d | %d | %.2f | %.0f | %.2f |\n",
-                    r.file.c_str(), r.solver.c_str(), r.converged ? "yes" : "no",
-                    r.lambda / r.q_norm, r.reference / r.q_norm, r.residual / r.q_norm,
-                    r.iterations, r.products, r.exchanges, r.reductions, 8e-6 * r.entries,
-                    r.scalars, r.seconds);
+        std::printf(
+            "| %s | %s | %s | %.3e | %.3e | %.1e | %d | %d | %d | %d | %.2f | %.0f | %.2f |\n",
+            r.file.c_str(), r.solver.c_str(), r.converged ? "yes" : "no", r.lambda / r.q_norm,
+            r.reference / r.q_norm, r.residual / r.q_norm, r.iterations, r.products, r.exchanges,
+            r.reductions, 8e-6 * r.entries, r.scalars, r.seconds);
     }
 }
 
@@ -71,6 +78,45 @@ Eigen::MatrixXd PointOf(const slam::PoseGraph& graph, const std::string& point) 
     if (point == "chordal") return slam::LiftToRank(slam::ChordalInitialization(graph), 5);
     const certify::PoseGraphSolverResult solved = certify::SolvePoseGraph(graph);
     return solved.poses;
+}
+
+Row LanczosRow(Row r, const std::vector<certify::CertificateRows>& split, int dimension) {
+    certify::LanczosSettings settings;
+    settings.max_krylov = dimension;
+    const auto start = Clock::now();
+    const certify::DistributedEigenResult l = certify::DistributedMinEigenpair(split, settings);
+    r.seconds = SecondsSince(start);
+    r.solver = "Lanczos";
+    r.converged = l.status == certify::DistributedEigenResult::Status::kConverged;
+    r.lambda = l.lambda_min;
+    r.residual = l.residual;
+    r.iterations = l.steps;
+    r.products = l.products;
+    r.exchanges = l.vector_exchanges;
+    r.reductions = l.scalar_reductions;
+    r.entries = l.entries_exchanged;
+    // setup 8, per step 1 + (step + 1), 3 at the end
+    r.scalars = 8.0 + 3.0 + l.steps + 0.5 * l.steps * (l.steps + 3.0);
+    return r;
+}
+
+Row LobpcgRow(Row r, const std::vector<certify::CertificateRows>& split,
+              const certify::LobpcgSettings& settings, certify::LobpcgResult* out) {
+    const auto start = Clock::now();
+    const certify::LobpcgResult o = certify::DistributedLobpcg(split, settings);
+    r.seconds = SecondsSince(start);
+    r.solver = "LOBPCG m=" + std::to_string(settings.block_size);
+    r.converged = o.status == certify::LobpcgResult::Status::kConverged;
+    r.lambda = o.lambda_min;
+    r.residual = o.residual;
+    r.iterations = o.iterations;
+    r.products = o.products;
+    r.exchanges = o.vector_exchanges;
+    r.reductions = o.scalar_reductions;
+    r.entries = o.entries_exchanged;
+    r.scalars = o.scalars_reduced;
+    *out = o;
+    return r;
 }
 
 int RunEigenBench(int argc, char** argv) {
@@ -116,41 +162,9 @@ int RunEigenBench(int argc, char** argv) {
         central.converged = true;
         central.seconds = SecondsSince(start);
         rows.push_back(central);
-        if (!skip_lanczos) {
-            certify::LanczosSettings settings;
-            settings.max_krylov = static_cast<int>(Q.rows());
-            start = Clock::now();
-            const certify::DistributedEigenResult l = certify::DistributedMinEigenpair(split, settings);
-            Row r = base;
-            r.seconds = SecondsSince(start);
-            r.solver = "Lanczos";
-            r.converged = l.status == certify::DistributedEigenResult::Status::kConverged;
-            r.lambda = l.lambda_min;
-            r.residual = l.residual;
-            r.iterations = l.steps;
-            r.products = l.products;
-            r.exchanges = l.vector_exchanges;
-            r.reductions = l.scalar_reductions;
-            r.entries = l.entries_exchanged;
-            // setup 8, per step 1 + (step + 1), 3 at the end
-            r.scalars = 8.0 + 3.0 + l.steps + 0.5 * l.steps * (l.steps + 3.0);
-            rows.push_back(r);
-        }
-        start = Clock::now();
-        const certify::LobpcgResult o = certify::DistributedLobpcg(split, lobpcg);
-        Row r = base;
-        r.seconds = SecondsSince(start);
-        r.solver = "LOBPCG m=" + std::to_string(lobpcg.block_size);
-        r.converged = o.status == certify::LobpcgResult::Status::kConverged;
-        r.lambda = o.lambda_min;
-        r.residual = o.residual;
-        r.iterations = o.iterations;
-        r.products = o.products;
-        r.exchanges = o.vector_exchanges;
-        r.reductions = o.scalar_reductions;
-        r.entries = o.entries_exchanged;
-        r.scalars = o.scalars_reduced;
-        rows.push_back(r);
+        if (!skip_lanczos) rows.push_back(LanczosRow(base, split, static_cast<int>(Q.rows())));
+        certify::LobpcgResult o;
+        rows.push_back(LobpcgRow(base, split, lobpcg, &o));
         if (!json) {
             std::fprintf(stderr, "%s: restarts %d, largest shift %.2e, ||S||_inf %.4e\n",
                          base.file.c_str(), o.restarts, o.max_shift, o.scale);

@@ -147,9 +147,7 @@ std::pair<Block, Block> Basis(const State& s, const Blocks& W, const Blocks& AW,
 }
 
 /// One robot's residual block R = S X - X diag(theta).
-Block Residual(const State& s, size_t k) {
-    return s.AX[k] - s.X[k] * s.theta.asDiagonal();
-}
+Block Residual(const State& s, size_t k) { return s.AX[k] - s.X[k] * s.theta.asDiagonal(); }
 
 /// Ritz values and the exact residuals of X (one exchange, one reduction): refreshes S X.
 Eigen::VectorXd Verify(Team& team, State* s) {
@@ -342,7 +340,8 @@ LobpcgResult DistributedLobpcg(const std::vector<CertificateRows>& robots,
     const int m = static_cast<int>(std::min<Eigen::Index>(settings.block_size, dimension / 3));
     CERTISLAM_CHECK(m >= 1);  // [X W P] must fit in the space
     State s = Start(team, settings, m, &result.scale);
-    result.max_shift = team.Factorise(settings.shift_relative * result.scale, settings.shift_growth);
+    result.max_shift =
+        team.Factorise(settings.shift_relative * result.scale, settings.shift_growth);
     const double limit = settings.tolerance * result.scale;
     result.status = LobpcgResult::Status::kNotConverged;
     while (result.iterations < settings.max_iterations) {

@@ -16,7 +16,7 @@ namespace certislam::certify {
 
 /// Settings of DistributedLobpcg.
 struct LobpcgSettings {
-    int block_size = 4;      ///< Ritz vectors iterated together, >= 1 (the certificate reads one)
+    int block_size = 4;  ///< Ritz vectors iterated together, >= 1 (the certificate reads one)
     int max_iterations = 2000;  ///< iterations at most, >= 1
     /// Converged when ||S x - theta x|| <= tolerance * ||S||_inf for the smallest Ritz pair
     /// (||S||_inf, the largest absolute row sum, bounds lambda_max(S) from above).
@@ -24,7 +24,7 @@ struct LobpcgSettings {
     /// Each robot's preconditioner is (S_kk + tau I)^{-1} with tau = shift_relative * ||S||_inf,
     /// multiplied by shift_growth until S_kk + tau I factorises (S_kk is indefinite at saddles).
     double shift_relative = 1e-10;
-    double shift_growth = 10.0;    ///< > 1
+    double shift_growth = 10.0;  ///< > 1
     /// Directions of [X W P] whose scaled Gram eigenvalue is below this times the largest are
     /// linearly dependent: P is dropped (restart), then such directions of [X W] are truncated.
     double drop_tolerance = 1e-12;

@@ -22,7 +22,8 @@ bool SolveOn(const LobpcgGram& z, const std::vector<int>& keep, int wanted, doub
     for (int i = 0; i < k; ++i) {
         for (int j = 0; j < k; ++j) {
             G(i, j) = scale(i) * scale(j) * z.gram(keep[i], keep[j]);
-            H(i, j) = scale(i) * scale(j) * 0.5 * (z.s_gram(keep[i], keep[j]) + z.s_gram(keep[j], keep[i]));
+            H(i, j) = scale(i) * scale(j) * 0.5 *
+                      (z.s_gram(keep[i], keep[j]) + z.s_gram(keep[j], keep[i]));
         }
     }
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> gram(G);
@@ -37,7 +38,8 @@ bool SolveOn(const LobpcgGram& z, const std::vector<int>& keep, int wanted, doub
     Eigen::MatrixXd B = gram.eigenvectors().rightCols(rank);
     for (int c = 0; c < rank; ++c) B.col(c) /= std::sqrt(mu(first + c));
     const Eigen::MatrixXd reduced = B.transpose() * H * B;
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ritz(0.5 * (reduced + reduced.transpose()));
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ritz(0.5 *
+                                                              (reduced + reduced.transpose()));
     if (ritz.info() != Eigen::Success) return false;
     const Eigen::MatrixXd local = scale.asDiagonal() * B * ritz.eigenvectors().leftCols(wanted);
     out->coefficients = Eigen::MatrixXd::Zero(z.gram.rows(), wanted);

@@ -17,11 +17,11 @@ struct LobpcgGram {
 
 /// Coefficients of the new iterate in Z: X_new = Z coefficients (s x wanted).
 struct RayleighRitzResult {
-    bool ok = false;                ///< false: fewer than `wanted` independent directions
-    Eigen::VectorXd ritz_values;    ///< ascending, `wanted` of them
-    Eigen::MatrixXd coefficients;   ///< s x wanted, Z-orthonormal columns
-    bool dropped_p = false;         ///< P was left out (the basis was too ill-conditioned)
-    int dropped_directions = 0;     ///< directions of [X W] truncated as linearly dependent
+    bool ok = false;               ///< false: fewer than `wanted` independent directions
+    Eigen::VectorXd ritz_values;   ///< ascending, `wanted` of them
+    Eigen::MatrixXd coefficients;  ///< s x wanted, Z-orthonormal columns
+    bool dropped_p = false;        ///< P was left out (the basis was too ill-conditioned)
+    int dropped_directions = 0;    ///< directions of [X W] truncated as linearly dependent
 };
 
 /// Rayleigh-Ritz on span(Z) for the `wanted` smallest Ritz pairs. The basis is orthonormalised

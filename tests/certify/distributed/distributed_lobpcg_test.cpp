@@ -22,9 +22,9 @@
 namespace certislam::certify {
 namespace {
 
-constexpr double kLambdaTolerance = 1e-8;  ///< |distributed - centralised| / ||Q||
+constexpr double kLambdaTolerance = 1e-8;    ///< |distributed - centralised| / ||Q||
 constexpr double kResidualTolerance = 1e-9;  ///< exact residual / ||Q||
-constexpr int kRank = 5;                   ///< rank of the lifted chordal start
+constexpr int kRank = 5;                     ///< rank of the lifted chordal start
 
 /// S at X, its centralised smallest eigenvalue, and its rows split into contiguous robots.
 struct Problem {
@@ -119,7 +119,7 @@ TEST(Determinism, TwoRunsGiveTheSameBitsAndCounts) {
     EXPECT_EQ(a.vector_exchanges, b.vector_exchanges);
 }
 
-TEST(Traffic, SmallGrid3DOptimumNeedsAThirdOfLanczosExchangesOrFewer) {
+TEST(Traffic, SmallGrid3DOptimumNeedsHalfOfLanczosExchangesAndAQuarterOfItsSums) {
     const slam::PoseGraph graph = Read("smallGrid3D.g2o");
     const Problem p = Split(graph, Optimum(graph), 5);
     LanczosSettings lanczos;
@@ -128,8 +128,8 @@ TEST(Traffic, SmallGrid3DOptimumNeedsAThirdOfLanczosExchangesOrFewer) {
     const LobpcgResult o = DistributedLobpcg(p.rows);
     ASSERT_EQ(l.status, DistributedEigenResult::Status::kConverged);
     ASSERT_EQ(o.status, LobpcgResult::Status::kConverged);
-    EXPECT_LE(3 * o.vector_exchanges, l.vector_exchanges);
-    EXPECT_LE(3 * o.scalar_reductions, l.scalar_reductions);
+    EXPECT_LE(2 * o.vector_exchanges, l.vector_exchanges);
+    EXPECT_LE(4 * o.scalar_reductions, l.scalar_reductions);
     EXPECT_LT(o.products, l.products);
 }
 

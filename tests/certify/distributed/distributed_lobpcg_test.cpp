@@ -119,8 +119,8 @@ TEST(Determinism, TwoRunsGiveTheSameBitsAndCounts) {
     EXPECT_EQ(a.vector_exchanges, b.vector_exchanges);
 }
 
-TEST(Traffic, SmallGrid3DOptimumNeedsHalfOfLanczosExchangesAndAQuarterOfItsSums) {
-    const slam::PoseGraph graph = Read("smallGrid3D.g2o");
+TEST(Traffic, Torus3DOptimumNeedsAThirdOfLanczosExchangesAndFewerProducts) {
+    const slam::PoseGraph graph = Read("torus3D.g2o");
     const Problem p = Split(graph, Optimum(graph), 5);
     LanczosSettings lanczos;
     lanczos.max_krylov = 4 * graph.n * (graph.d + 1);
@@ -128,8 +128,8 @@ TEST(Traffic, SmallGrid3DOptimumNeedsHalfOfLanczosExchangesAndAQuarterOfItsSums)
     const LobpcgResult o = DistributedLobpcg(p.rows);
     ASSERT_EQ(l.status, DistributedEigenResult::Status::kConverged);
     ASSERT_EQ(o.status, LobpcgResult::Status::kConverged);
-    EXPECT_LE(2 * o.vector_exchanges, l.vector_exchanges);
-    EXPECT_LE(4 * o.scalar_reductions, l.scalar_reductions);
+    EXPECT_LE(3 * o.vector_exchanges, l.vector_exchanges);
+    EXPECT_LE(6 * o.scalar_reductions, l.scalar_reductions);
     EXPECT_LT(o.products, l.products);
 }
 

@@ -16,7 +16,7 @@ namespace certislam::certify {
 
 /// Settings of DistributedLobpcg.
 struct LobpcgSettings {
-    int block_size = 4;  ///< Ritz vectors iterated together, >= 1 (the certificate reads one)
+    int block_size = 4;  ///< Ritz vectors iterated together, 1..16 (the certificate reads one)
     int max_iterations = 2000;  ///< iterations at most, >= 1
     /// Converged when ||S x - theta x|| <= tolerance * ||S||_inf for the smallest Ritz pair
     /// (||S||_inf, the largest absolute row sum, bounds lambda_max(S) from above).
@@ -38,8 +38,7 @@ struct LobpcgSettings {
 struct LobpcgResult {
     enum class Status {
         kConverged,     ///< the smallest Ritz pair's exact residual is below tolerance
-        kNotConverged,  ///< max_iterations reached first (lambda_min: the smallest Ritz value)
-        kBreakdown,     ///< the block lost independence beyond repair (lambda_min: last value)
+        kNotConverged,  ///< max_iterations reached first, or the block lost independence
     };
     Status status = Status::kNotConverged;
     double lambda_min = 0.0;              ///< Rayleigh quotient of `vector`
@@ -56,7 +55,8 @@ struct LobpcgResult {
     double max_shift = 0.0;               ///< largest tau any robot's preconditioner needed
 };
 
-/// Smallest eigenpair of S held as rows by robots (the interface of DistributedMinEigenpair).
+/// Smallest eigenpair of S held as rows by robots (the interface of DistributedMinEigenpair): one
+/// LobpcgParticipant per robot, their messages delivered in memory (RunInMemory).
 LobpcgResult DistributedLobpcg(const std::vector<CertificateRows>& robots,
                                const LobpcgSettings& settings = {});
 

@@ -70,4 +70,18 @@ RayleighRitzResult SolveRayleighRitz(const LobpcgGram& z, int wanted, double dro
     return out;
 }
 
+void PackUpper(const Eigen::MatrixXd& M, std::vector<double>* out) {
+    for (Eigen::Index i = 0; i < M.rows(); ++i) {
+        for (Eigen::Index j = i; j < M.cols(); ++j) out->push_back(M(i, j));
+    }
+}
+
+Eigen::MatrixXd UnpackUpper(const std::vector<double>& in, Eigen::Index s, size_t* from) {
+    Eigen::MatrixXd M(s, s);
+    for (Eigen::Index i = 0; i < s; ++i) {
+        for (Eigen::Index j = i; j < s; ++j) M(i, j) = M(j, i) = in[(*from)++];
+    }
+    return M;
+}
+
 }  // namespace certislam::certify

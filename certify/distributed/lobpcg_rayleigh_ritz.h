@@ -3,6 +3,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
+#include <vector>
 
 namespace certislam::certify {
 
@@ -30,5 +32,12 @@ struct RayleighRitzResult {
 /// falls below that, P is dropped and the problem solved on [X W] (Duersch et al. 2018's restart:
 /// the basis [X W P] loses independence as the iteration converges).
 RayleighRitzResult SolveRayleighRitz(const LobpcgGram& z, int wanted, double drop_tolerance);
+
+/// Appends the upper triangle of M (row by row) to `out` (a symmetric sum over robots needs only
+/// the sum of the partial upper triangles).
+void PackUpper(const Eigen::MatrixXd& M, std::vector<double>* out);
+
+/// The symmetric s x s matrix packed by PackUpper from `in` at `*from` (advanced past it).
+Eigen::MatrixXd UnpackUpper(const std::vector<double>& in, Eigen::Index s, size_t* from);
 
 }  // namespace certislam::certify

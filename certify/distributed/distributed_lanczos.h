@@ -151,7 +151,8 @@ struct DistributedEigenResult {
 
 /// Smallest eigenpair of S held as rows by robots: one LanczosParticipant per robot, their
 /// messages delivered in memory (the certifier actor sends the same ones over the network).
-/// The rows carry no X, so no gradient test is made; `settings` eta and gradient fields unused.
+/// The rows carry no X, so no gradient test is made; `settings` eta and gradient fields unused,
+/// and `settings.method` too (always Lanczos: DistributedLobpcg runs the other).
 DistributedEigenResult DistributedMinEigenpair(const std::vector<CertificateRows>& robots,
                                                const LanczosSettings& settings = {});
 

@@ -16,7 +16,7 @@ void LobpcgSettings::Validate() const {
         throw std::invalid_argument("LobpcgSettings." + field + " = " + std::to_string(value) +
                                     ": must be " + rule);
     };
-    if (block_size < 1 || 2 * block_size >= LobpcgParticipant::kStepStride) {
+    if (block_size < 1 || block_size > kMaxBlockSize) {
         fail("block_size", block_size, "in [1, 16]");
     }
     if (max_iterations < 1) fail("max_iterations", max_iterations, ">= 1");

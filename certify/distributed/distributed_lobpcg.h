@@ -14,6 +14,9 @@
 
 namespace certislam::certify {
 
+/// Columns of a LOBPCG block at most (a vector message carries one block).
+inline constexpr int kMaxBlockSize = 16;
+
 /// Settings of DistributedLobpcg.
 struct LobpcgSettings {
     int block_size = 4;  ///< Ritz vectors iterated together, 1..16 (the certificate reads one)

@@ -122,7 +122,9 @@ DistributedEigenResult DistributedMinEigenpair(const std::vector<CertificateRows
     const std::vector<LocalCertificateProblem> problems = LocalProblemsOf(robots);
     DistributedEigenResult result;
     InMemoryTraffic traffic;
-    const auto robot = RunInMemory(problems, settings, &traffic);
+    LanczosSettings lanczos = settings;
+    lanczos.method = LanczosSettings::Method::kLanczos;  // the counts below are Lanczos'
+    const auto robot = RunInMemory(problems, lanczos, &traffic);
     result.entries_exchanged = traffic.entries;
     const DistributedVerdict& verdict = robot.front()->Verdict();
     CERTISLAM_CHECK(verdict.status != DistributedVerdict::Status::kInconsistent);

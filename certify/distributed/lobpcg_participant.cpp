@@ -103,7 +103,7 @@ void LobpcgParticipant::Begin() {
 
 void LobpcgParticipant::OnVector(int robot, int step, const std::vector<slam::PoseId>& ids,
                                  const Eigen::VectorXd& values) {
-    if (done_ || step / kStepStride < exchange_ || !problem_.neighbor_robots.count(robot)) return;
+    if (done_ || step < exchange_ || !problem_.neighbor_robots.count(robot)) return;
     vectors_[step][robot] = {ids, values};
     Advance();
 }
@@ -150,39 +150,40 @@ void LobpcgParticipant::SendBlock(const Eigen::MatrixXd& B, Purpose purpose) {
     ++progress_.exchanges;
     progress_.products += static_cast<int>(B.cols());
     if (problem_.public_ids.empty()) return;
+    // One message per exchange: the block's columns one after another.
+    const Eigen::Index per_column =
+        (problem_.rows.d + 1) * static_cast<Eigen::Index>(problem_.public_ids.size());
+    Eigen::VectorXd values(per_column * B.cols());
     for (Eigen::Index j = 0; j < B.cols(); ++j) {
-        const Eigen::VectorXd entries = PublicEntries(problem_.rows, B.col(j));
-        verdict_.entries_sent += static_cast<double>(entries.size());
-        send_vector_(exchange_ * kStepStride + static_cast<int>(j), problem_.public_ids, entries);
+        values.segment(j * per_column, per_column) = PublicEntries(problem_.rows, B.col(j));
     }
+    verdict_.entries_sent += static_cast<double>(values.size());
+    send_vector_(exchange_, problem_.public_ids, values);
 }
 
 bool LobpcgParticipant::Gather(Eigen::MatrixXd* neighbors) {
     const int b = problem_.rows.d + 1;
     const Eigen::Index cols = sent_.cols();
+    const auto it = vectors_.find(exchange_);
+    for (const int r : problem_.neighbor_robots) {
+        if (it == vectors_.end() || !it->second.count(r)) return false;
+    }
     neighbors->resize(b * static_cast<Eigen::Index>(problem_.neighbor_ids.size()), cols);
-    for (Eigen::Index j = 0; j < cols; ++j) {
-        const auto it = vectors_.find(exchange_ * kStepStride + static_cast<int>(j));
-        for (const int r : problem_.neighbor_robots) {
-            if (it == vectors_.end() || !it->second.count(r)) return false;
+    for (size_t k = 0; k < problem_.neighbor_ids.size(); ++k) {
+        const slam::PoseId& id = problem_.neighbor_ids[k];
+        const auto& [ids, values] = it->second.at(id.robot);
+        const auto pos = std::find(ids.begin(), ids.end(), id);
+        const Eigen::Index per_column = b * static_cast<Eigen::Index>(ids.size());
+        if (pos == ids.end() || values.size() != per_column * cols) {
+            Finish(DistributedVerdict::Status::kInconsistent);
+            return false;
         }
-    }
-    for (Eigen::Index j = 0; j < cols; ++j) {
-        const int step = exchange_ * kStepStride + static_cast<int>(j);
-        const auto it = vectors_.find(step);
-        for (size_t k = 0; k < problem_.neighbor_ids.size(); ++k) {
-            const slam::PoseId& id = problem_.neighbor_ids[k];
-            const auto& [ids, values] = it->second.at(id.robot);
-            const auto pos = std::find(ids.begin(), ids.end(), id);
-            if (pos == ids.end() || values.size() != b * static_cast<Eigen::Index>(ids.size())) {
-                Finish(DistributedVerdict::Status::kInconsistent);
-                return false;
-            }
+        for (Eigen::Index j = 0; j < cols; ++j) {
             neighbors->block(b * static_cast<Eigen::Index>(k), j, b, 1) =
-                values.segment(b * (pos - ids.begin()), b);
+                values.segment(j * per_column + b * (pos - ids.begin()), b);
         }
-        if (it != vectors_.end()) vectors_.erase(it);
     }
+    if (it != vectors_.end()) vectors_.erase(it);
     return true;
 }
 
@@ -201,6 +202,7 @@ void LobpcgParticipant::Advance() {
             case Phase::kProduct: {
                 Eigen::MatrixXd neighbors;
                 if (!Gather(&neighbors)) return;
+                ++exchanges_done_;
                 product_ = problem_.rows.own * sent_;
                 if (problem_.rows.nbr.cols() > 0) product_ += problem_.rows.nbr * neighbors;
                 Share(exchange_, kSumsStage, PartialSums());
@@ -387,7 +389,7 @@ bool LobpcgParticipant::Update() {
 
 void LobpcgParticipant::Finish(DistributedVerdict::Status status) {
     verdict_.status = status;
-    verdict_.steps = progress_.exchanges;
+    verdict_.steps = exchanges_done_;
     done_ = true;
     vectors_.clear();
     partials_.clear();

@@ -29,15 +29,13 @@ struct LobpcgProgress {
 };
 
 /// LOBPCG on S over messages. Exchange e sends the public entries of a block (the start block,
-/// an iteration's W, or X to verify), column j as vector step e * kStepStride + j; its one
-/// reduction is (step e, stage 1); the setup sums are (0, 0). Every robot solves the same
-/// Rayleigh-Ritz problem from the same sums (summed in team order), so all take the same
+/// an iteration's W, or X to verify) as one vector message of step e, its columns one after
+/// another; its one reduction is (step e, stage 1); the setup sums are (0, 0). Every robot solves
+/// the same Rayleigh-Ritz problem from the same sums (summed in team order), so all take the same
 /// decisions. A Ritz pair that converged on the recurrence for S X is verified with an exact
-/// product before the verdict. Verdict().steps counts exchanges.
+/// product before the verdict. Verdict().steps counts the exchanges whose product was taken.
 class LobpcgParticipant : public RoundParticipant {
   public:
-    static constexpr int kStepStride = 32;  ///< vector steps per exchange (> 2 * block_size)
-
     LobpcgParticipant(LocalCertificateProblem problem, std::vector<int> team, std::uint64_t round,
                       const LanczosSettings& settings, VectorSender send_vector,
                       ReductionSender send_reduction);
@@ -83,6 +81,7 @@ class LobpcgParticipant : public RoundParticipant {
     LobpcgProgress progress_;
     std::unique_ptr<Factor> factor_;   ///< (S_kk + tau I)^{-1}
     int exchange_ = 0;                 ///< the exchange in progress
+    int exchanges_done_ = 0;           ///< exchanges whose product was taken
     double limit_ = 0.0;               ///< tolerance * ||S||_inf
     Eigen::MatrixXd X_, AX_, P_, AP_;  ///< own segments; P_ empty before the first update
     Eigen::MatrixXd sent_, product_;   ///< the block of the exchange in progress and S of it

@@ -6,12 +6,16 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+#include <memory>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "certify/certificate.h"
 #include "certify/distributed/distributed_lanczos.h"
+#include "certify/distributed/round_participant.h"
 #include "certify/min_eigenpair.h"
 #include "certify/pose_graph_solver.h"
 #include "slam/backend/chordal.h"
@@ -141,6 +145,59 @@ TEST(Settings, RejectsABadFieldByName) {
         FAIL() << "shift_growth = 1 accepted";
     } catch (const std::invalid_argument& e) {
         EXPECT_NE(std::string(e.what()).find("shift_growth"), std::string::npos) << e.what();
+    }
+}
+
+}  // namespace
+}  // namespace certislam::certify
+
+namespace certislam::certify {
+namespace {
+
+TEST(Participant, ShuffledDeliveryReachesTheInOrderVerdict) {
+    // Messages between robots arrive in any order over a network: deliver them in a seeded
+    // random order and compare with the in-order run, bit for bit.
+    const slam::PoseGraph graph = Read("smallGrid3D.g2o");
+    const Eigen::MatrixXd X = slam::LiftToRank(slam::ChordalInitialization(graph), kRank);
+    const Problem p = Split(graph, X, 3);
+    const LobpcgResult in_order = DistributedLobpcg(p.rows);
+    const std::vector<LocalCertificateProblem> problems = LocalProblemsOf(p.rows);
+    LanczosSettings settings;
+    settings.method = LanczosSettings::Method::kLobpcg;
+    std::vector<std::function<void()>> mail;
+    std::vector<std::unique_ptr<RoundParticipant>> robots(problems.size());
+    const std::vector<int> team{0, 1, 2};
+    for (int k = 0; k < 3; ++k) {
+        robots[k] = MakeRoundParticipant(
+            problems[k], team, 1, settings,
+            [&, k](int step, const std::vector<slam::PoseId>& ids, const Eigen::VectorXd& v) {
+                for (int to = 0; to < 3; ++to) {
+                    if (!problems[to].neighbor_robots.count(k)) continue;
+                    mail.push_back(
+                        [&, to, k, step, ids, v] { robots[to]->OnVector(k, step, ids, v); });
+                }
+            },
+            [&, k](int step, int stage, const std::vector<double>& sums) {
+                for (int to = 0; to < 3; ++to) {
+                    if (to == k) continue;
+                    mail.push_back([&, to, k, step, stage, sums] {
+                        robots[to]->OnReduction(k, step, stage, sums);
+                    });
+                }
+            });
+    }
+    for (auto& r : robots) r->Begin();
+    std::mt19937 rng(5);
+    while (!mail.empty()) {
+        const size_t pick = std::uniform_int_distribution<size_t>(0, mail.size() - 1)(rng);
+        const auto deliver = std::move(mail[pick]);
+        mail.erase(mail.begin() + static_cast<std::ptrdiff_t>(pick));
+        deliver();
+    }
+    for (const auto& r : robots) {
+        ASSERT_TRUE(r->Done());
+        EXPECT_EQ(r->Verdict().status, DistributedVerdict::Status::kConverged);
+        EXPECT_EQ(r->Verdict().lambda_min, in_order.lambda_min);
     }
 }
 

@@ -363,8 +363,8 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
         Send(*out_, transport::Pack(r), true);
         RememberSent(&round_sent_, transport::Pack(r));
     };
-    lanczos_ = std::make_unique<certify::LanczosParticipant>(
-        std::move(problem), Wiring().robots, round_, config_.lanczos, send_vector, send_reduction);
+    lanczos_ = certify::MakeRoundParticipant(std::move(problem), Wiring().robots, round_,
+                                             config_.lanczos, send_vector, send_reduction);
     lanczos_->Begin();
     auto early = std::move(early_[round_]);
     early_.clear();

@@ -116,16 +116,16 @@ class CertifierActor final : public NodeActor {
     CertifierConfig config_;
     bool anchor_ = false;
     transport::Endpoint* out_ = nullptr;
-    std::map<int, Bundle> pending_;               ///< bundles being received
-    std::map<int, Bundle> bundles_;               ///< last complete bundle per robot
-    std::map<int, std::vector<Bundle>> history_;  ///< recent distinct bundles, newest last
-    std::map<int, Bundle> round_bundles_;         ///< anchor: the bundles of the round
-    std::set<int> bundle_streams_;                ///< robots whose bundle stream it reads
-    std::unique_ptr<certify::LanczosParticipant> lanczos_;    ///< the round in progress
-    std::uint64_t round_ = 0;                                 ///< its id
-    std::uint64_t round_edges_ = 0;                           ///< edges of its graph
-    std::uint32_t round_rank_ = 0;                            ///< its relaxation rank
-    std::uint64_t rounds_opened_ = 0;                         ///< anchor: rounds opened
+    std::map<int, Bundle> pending_;                       ///< bundles being received
+    std::map<int, Bundle> bundles_;                       ///< last complete bundle per robot
+    std::map<int, std::vector<Bundle>> history_;          ///< recent distinct bundles, newest last
+    std::map<int, Bundle> round_bundles_;                 ///< anchor: the bundles of the round
+    std::set<int> bundle_streams_;                        ///< robots whose bundle stream it reads
+    std::unique_ptr<certify::RoundParticipant> lanczos_;  ///< the round in progress
+    std::uint64_t round_ = 0;                             ///< its id
+    std::uint64_t round_edges_ = 0;                       ///< edges of its graph
+    std::uint32_t round_rank_ = 0;                        ///< its relaxation rank
+    std::uint64_t rounds_opened_ = 0;                     ///< anchor: rounds opened
     std::chrono::steady_clock::time_point round_progress_{};  ///< last message of the round
     std::chrono::steady_clock::time_point round_opened_{};    ///< anchor: when it opened
     bool round_heard_ = false;  ///< a message of another robot for the round arrived

@@ -115,12 +115,13 @@ bool IsValidRound(const v1::CertificateRound& round);
 struct RoundVector {
     std::uint64_t round = 0;  ///< > 0
     int robot = 0;
-    int step = 0;                   ///< Lanczos step
+    int step = 0;                   ///< Lanczos step, or LOBPCG exchange
     std::vector<slam::PoseId> ids;  ///< the sender's public poses
-    Eigen::VectorXd values;         ///< kCertificateBlock finite values per id
+    Eigen::VectorXd values;  ///< kCertificateBlock finite values per id, per column (1 to 16)
 };
 /// A CertificateVector as a RoundVector; nullopt unless round > 0, block_size = kCertificateBlock,
-/// the value count matches the ids, every value is finite and the ids and step fit an int.
+/// the value count is 1 to certify::kMaxBlockSize columns of the ids' values, every value is
+/// finite and the ids and step fit an int.
 std::optional<RoundVector> FromProto(const v1::CertificateVector& vector);
 /// One robot's partial sums of a round (CertificateReduction).
 struct RoundReduction {

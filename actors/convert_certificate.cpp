@@ -5,6 +5,7 @@
 #include <set>
 
 #include "actors/convert.h"
+#include "certify/distributed/distributed_lobpcg.h"
 
 namespace certislam::actors {
 namespace {
@@ -42,8 +43,13 @@ bool IsValidRound(const v1::CertificateRound& round) {
 
 std::optional<RoundVector> FromProto(const v1::CertificateVector& vector) {
     const auto count = static_cast<std::size_t>(vector.pose_ids_size());
-    if (vector.round() == 0 || vector.block_size() != kCertificateBlock ||
-        static_cast<std::size_t>(vector.values_size()) != count * kCertificateBlock ||
+    // One vector (Lanczos) or a block of up to certify::kMaxBlockSize columns (LOBPCG).
+    const std::size_t per_column = count * kCertificateBlock;
+    const auto values = static_cast<std::size_t>(vector.values_size());
+    const bool shape = per_column == 0 ? values == 0
+                                       : values % per_column == 0 && values >= per_column &&
+                                             values / per_column <= certify::kMaxBlockSize;
+    if (vector.round() == 0 || vector.block_size() != kCertificateBlock || !shape ||
         !FitsInt(vector.header().robot_id()) || !FitsInt(vector.step()) ||
         !AllFinite(vector.values())) {
         return std::nullopt;

@@ -187,6 +187,16 @@ std::vector<ConfigKey> SolverAndCertifierKeys() {
             [](TeamConfig & c, int) -> auto& { return c.node.certifier.distributed; },
             {{"distributed", true}, {"centralised", false}},
             "certify with the distributed Lanczos, or centralised at the anchor"),
+        Choice<certify::LanczosSettings::Method>(
+            "certifier.eigensolver",
+            [](TeamConfig & c, int) -> auto& { return c.node.certifier.lanczos.method; },
+            {{"lanczos", certify::LanczosSettings::Method::kLanczos},
+             {"lobpcg", certify::LanczosSettings::Method::kLobpcg}},
+            "distributed eigen-solver: Lanczos, or block-Jacobi preconditioned LOBPCG"),
+        Num<int>(
+            "certifier.lobpcg_block",
+            [](TeamConfig & c, int) -> auto& { return c.node.certifier.lanczos.lobpcg.block_size; },
+            {1.0, 16.0}, "LOBPCG block size"),
         Num<int>(
             "certifier.max_krylov",
             [](TeamConfig & c, int) -> auto& { return c.node.certifier.lanczos.max_krylov; },

@@ -146,6 +146,7 @@ void LanczosSettings::Validate() const {
     if (!(gradient_tolerance_relative >= 0.0)) {
         fail("gradient_tolerance_relative", gradient_tolerance_relative, ">= 0");
     }
+    lobpcg.Validate();
 }
 
 LanczosParticipant::LanczosParticipant(LocalCertificateProblem problem, std::vector<int> team,

@@ -17,12 +17,21 @@
 
 #include "certify/certificate.h"
 #include "certify/distributed/distributed_certificate.h"
+#include "certify/distributed/distributed_lobpcg.h"
+#include "certify/distributed/round_participant.h"
 #include "slam/core/pose_graph.h"
 
 namespace certislam::certify {
 
 /// Settings of the distributed check (the centralised check's meaning of every tolerance).
 struct LanczosSettings {
+    /// The eigen-solver of a round (MakeRoundParticipant): every robot must use the same.
+    enum class Method {
+        kLanczos,  ///< LanczosParticipant (the fields below)
+        kLobpcg,   ///< LobpcgParticipant (`lobpcg`; eta and gradient fields from here)
+    };
+    Method method = Method::kLanczos;
+    LobpcgSettings lobpcg;  ///< settings of the LOBPCG method
     /// Lanczos steps at most (and at most the dimension of S), >= 2. Without shift-invert the
     /// smallest eigenvalue of S sits in a cluster near 0 far below ||S||: Lanczos may need
     /// nearly the whole Krylov space, which full reorthogonalisation makes exact.
@@ -39,36 +48,6 @@ struct LanczosSettings {
     void Validate() const;
 };
 
-/// What one robot's share of a round computed (identical on every robot of the round): the
-/// team's sums at one X on one graph and the Lanczos lambda_min. The verdict and bound follow
-/// from them by the central rules (DecideRound in round_certificate.h).
-struct DistributedVerdict {
-    enum class Status {
-        kConverged,     ///< critical, and the Ritz value of lambda_min converged
-        kNotCritical,   ///< gradient above tolerance (FirstOrderVerdict): no eigenvalue
-        kNotConverged,  ///< Lanczos ran out of steps (lambda_min: best Ritz value)
-        kInconsistent,  ///< a neighbour's entries did not cover the poses this robot reads
-    };
-    Status status = Status::kNotConverged;
-    std::uint64_t round = 0;          ///< the anchor's round id
-    double lambda_min = 0.0;          ///< smallest Ritz value of S
-    double residual_estimate = 0.0;   ///< |beta_m y_m| of the Ritz pair
-    double q_norm = 0.0;              ///< max absolute row sum of Q (team)
-    double eta = 0.0;                 ///< eta_relative * q_norm
-    double cost = 0.0;                ///< f(X) = tr(X Q X^T) (team)
-    double dual_value = 0.0;          ///< tr(Lambda) (team)
-    double gradient_norm = 0.0;       ///< ||2 X S||_F (team)
-    double gradient_tolerance = 0.0;  ///< absolute first-order tolerance (FirstOrderVerdict)
-    double x_norm = 0.0;              ///< ||X||_F (team)
-    double objective_noise = 0.0;     ///< rounding floor of f(X) (team; ObjectiveOfColumns)
-    int poses = 0;                    ///< poses of the round's graph
-    int steps = 0;                    ///< Lanczos steps (S v products)
-    double entries_sent = 0.0;        ///< doubles of v this robot sent to neighbours
-    /// Anchor with CertifierConfig::cross_check: lambda_min of the round's joint graph by the
-    /// centralised check (certify::Certify), for comparison
-    std::optional<double> central_lambda_min;
-};
-
 /// The round's sums as the central verdict's first-order quantities.
 CertificateQuantities QuantitiesOf(const DistributedVerdict& v);
 
@@ -80,33 +59,26 @@ CertificateQuantities QuantitiesOf(const DistributedVerdict& v);
 /// (u - V c) / beta from the reduced sums and the public entries of V it already holds. Ritz
 /// values by bisection (O(m) per check), the Ritz vector by inverse iteration. A round whose
 /// gradient is above tolerance ends after the setup sums (kNotCritical, no steps).
-class LanczosParticipant {
+class LanczosParticipant : public RoundParticipant {
   public:
-    /// Sends this robot's public entries of the step's vector to its neighbours.
-    using VectorSender = std::function<void(int step, const std::vector<slam::PoseId>& ids,
-                                            const Eigen::VectorXd& values)>;
-    /// Sends this robot's partial sums of (step, stage) to every robot.
-    using ReductionSender =
-        std::function<void(int step, int stage, const std::vector<double>& values)>;
-
     LanczosParticipant(LocalCertificateProblem problem, std::vector<int> team, std::uint64_t round,
                        const LanczosSettings& settings, VectorSender send_vector,
                        ReductionSender send_reduction);
 
     /// Sends the setup sums (call once, after the handlers are in place).
-    void Begin();
+    void Begin() override;
     /// A neighbour's public entries of step `step`'s vector.
     void OnVector(int robot, int step, const std::vector<slam::PoseId>& ids,
-                  const Eigen::VectorXd& values);
+                  const Eigen::VectorXd& values) override;
     /// A robot's partial sums of (step, stage).
-    void OnReduction(int robot, int step, int stage, const std::vector<double>& values);
+    void OnReduction(int robot, int step, int stage, const std::vector<double>& values) override;
 
     /// True once the verdict is in.
-    bool Done() const { return done_; }
+    bool Done() const override { return done_; }
     /// The verdict (meaningful once Done()).
-    const DistributedVerdict& Verdict() const { return verdict_; }
+    const DistributedVerdict& Verdict() const override { return verdict_; }
     /// This robot's segment of the unit Ritz vector of lambda_min (zero before the first check).
-    Eigen::VectorXd RitzSegment() const;
+    Eigen::VectorXd RitzSegment() const override;
 
   private:
     enum class Phase { kSetup, kProduct, kPass1, kPass2 };
@@ -149,11 +121,16 @@ struct InMemoryTraffic {
     double entries = 0.0;                      ///< doubles of v sent between robots
 };
 
-/// One round over `problems` (the team: their robot ids, in this order), every message delivered
-/// in memory in send order; returns the participants once no message is left.
-std::vector<std::unique_ptr<LanczosParticipant>> RunInMemory(
+/// One round over `problems` (the team: their robot ids, in this order) by the participants
+/// `settings.method` names, every message delivered in memory in send order; returns the
+/// participants once no message is left.
+std::vector<std::unique_ptr<RoundParticipant>> RunInMemory(
     const std::vector<LocalCertificateProblem>& problems, const LanczosSettings& settings,
     InMemoryTraffic* traffic = nullptr);
+
+/// Each robot's problem from its rows alone: poses named (owner, global index); no X, so no cost
+/// and no gradient (both zero: the gradient test passes trivially).
+std::vector<LocalCertificateProblem> LocalProblemsOf(const std::vector<CertificateRows>& robots);
 
 /// Result of DistributedMinEigenpair.
 struct DistributedEigenResult {
@@ -174,7 +151,8 @@ struct DistributedEigenResult {
 
 /// Smallest eigenpair of S held as rows by robots: one LanczosParticipant per robot, their
 /// messages delivered in memory (the certifier actor sends the same ones over the network).
-/// The rows carry no X, so no gradient test is made; `settings` eta and gradient fields unused.
+/// The rows carry no X, so no gradient test is made; `settings` eta and gradient fields unused,
+/// and `settings.method` too (always Lanczos: DistributedLobpcg runs the other).
 DistributedEigenResult DistributedMinEigenpair(const std::vector<CertificateRows>& robots,
                                                const LanczosSettings& settings = {});
 

@@ -23,29 +23,6 @@ double Dot(const Segments& a, const Segments& b) {
     return s;
 }
 
-/// Robot k's problem from its rows alone: poses named (owner, global index); no X, so no cost
-/// and no gradient (both zero: the gradient test passes trivially).
-std::vector<LocalCertificateProblem> ProblemsOf(const std::vector<CertificateRows>& robots) {
-    std::map<int, int> owner;  // public global pose -> robot
-    for (size_t k = 0; k < robots.size(); ++k) {
-        for (const int g : robots[k].public_poses) owner[g] = static_cast<int>(k);
-    }
-    std::vector<LocalCertificateProblem> problems(robots.size());
-    for (size_t k = 0; k < robots.size(); ++k) {
-        LocalCertificateProblem& p = problems[k];
-        p.robot = static_cast<int>(k);
-        p.rows = robots[k];
-        for (const int g : p.rows.public_poses) p.public_ids.push_back({p.robot, g});
-        for (const int g : p.rows.neighbor_poses) {
-            const auto it = owner.find(g);
-            CERTISLAM_CHECK(it != owner.end());  // every neighbour pose is public at its owner
-            p.neighbor_ids.push_back({it->second, g});
-            p.neighbor_robots.insert(it->second);
-        }
-    }
-    return problems;
-}
-
 /// The exact product S v over the team (for the residual of the final Ritz vector).
 Segments Multiply(const std::vector<LocalCertificateProblem>& problems, const Segments& v) {
     std::map<slam::PoseId, Eigen::VectorXd> published;
@@ -70,7 +47,28 @@ Segments Multiply(const std::vector<LocalCertificateProblem>& problems, const Se
 
 }  // namespace
 
-std::vector<std::unique_ptr<LanczosParticipant>> RunInMemory(
+std::vector<LocalCertificateProblem> LocalProblemsOf(const std::vector<CertificateRows>& robots) {
+    std::map<int, int> owner;  // public global pose -> robot
+    for (size_t k = 0; k < robots.size(); ++k) {
+        for (const int g : robots[k].public_poses) owner[g] = static_cast<int>(k);
+    }
+    std::vector<LocalCertificateProblem> problems(robots.size());
+    for (size_t k = 0; k < robots.size(); ++k) {
+        LocalCertificateProblem& p = problems[k];
+        p.robot = static_cast<int>(k);
+        p.rows = robots[k];
+        for (const int g : p.rows.public_poses) p.public_ids.push_back({p.robot, g});
+        for (const int g : p.rows.neighbor_poses) {
+            const auto it = owner.find(g);
+            CERTISLAM_CHECK(it != owner.end());  // every neighbour pose is public at its owner
+            p.neighbor_ids.push_back({it->second, g});
+            p.neighbor_robots.insert(it->second);
+        }
+    }
+    return problems;
+}
+
+std::vector<std::unique_ptr<RoundParticipant>> RunInMemory(
     const std::vector<LocalCertificateProblem>& problems, const LanczosSettings& settings,
     InMemoryTraffic* traffic) {
     InMemoryTraffic ignored;
@@ -82,7 +80,7 @@ std::vector<std::unique_ptr<LanczosParticipant>> RunInMemory(
         slot[problems[k].robot] = k;
     }
     std::deque<std::function<void()>> mail;  // deliveries in send order
-    std::vector<std::unique_ptr<LanczosParticipant>> robot(problems.size());
+    std::vector<std::unique_ptr<RoundParticipant>> robot(problems.size());
     for (size_t k = 0; k < problems.size(); ++k) {
         const int from = problems[k].robot;
         auto send_vector = [&, from](int step, const std::vector<slam::PoseId>& ids,
@@ -105,8 +103,8 @@ std::vector<std::unique_ptr<LanczosParticipant>> RunInMemory(
                 });
             }
         };
-        robot[k] = std::make_unique<LanczosParticipant>(problems[k], team, 0, settings, send_vector,
-                                                        send_reduction);
+        robot[k] =
+            MakeRoundParticipant(problems[k], team, 0, settings, send_vector, send_reduction);
     }
     for (auto& r : robot) r->Begin();
     while (!mail.empty()) {
@@ -121,10 +119,12 @@ DistributedEigenResult DistributedMinEigenpair(const std::vector<CertificateRows
                                                const LanczosSettings& settings) {
     settings.Validate();
     CERTISLAM_CHECK(!robots.empty());
-    const std::vector<LocalCertificateProblem> problems = ProblemsOf(robots);
+    const std::vector<LocalCertificateProblem> problems = LocalProblemsOf(robots);
     DistributedEigenResult result;
     InMemoryTraffic traffic;
-    const auto robot = RunInMemory(problems, settings, &traffic);
+    LanczosSettings lanczos = settings;
+    lanczos.method = LanczosSettings::Method::kLanczos;  // the counts below are Lanczos'
+    const auto robot = RunInMemory(problems, lanczos, &traffic);
     result.entries_exchanged = traffic.entries;
     const DistributedVerdict& verdict = robot.front()->Verdict();
     CERTISLAM_CHECK(verdict.status != DistributedVerdict::Status::kInconsistent);

@@ -1,16 +1,19 @@
 // The distributed certificate (each robot's share built from its block, its edges and its
 // neighbours' blocks; one round of message-driven Lanczos; the central rules decide) against
 // certify::Certify on the assembled graph: objective, duality gap, lower bound, relative bound
-// and verdict agree on 2, 4 and 8 robots, at a certified optimum and at a saddle.
+// and verdict agree on 2, 4 and 8 robots, at a certified optimum and at a saddle, with either
+// eigen-solver (Lanczos, LOBPCG).
 #include "certify/distributed/round_certificate.h"
 
 #include <gtest/gtest.h>
 
 #include <string>
+#include <tuple>
 
 #include "certify/staircase.h"
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
+#include "slam/io/g2o_io.h"
 #include "tests/certify/test_graphs.h"
 
 namespace certislam::certify {
@@ -40,10 +43,21 @@ void ExpectAgree(const CertificateResult& dist, const CertificateResult& central
     EXPECT_NEAR(dist.relative_suboptimality_bound, central.relative_suboptimality_bound, kRelative);
 }
 
-class RoundCertificate : public ::testing::TestWithParam<int> {};
+using Method = LanczosSettings::Method;
+
+class RoundCertificate : public ::testing::TestWithParam<std::tuple<int, Method>> {
+  protected:
+    int Robots() const { return std::get<0>(GetParam()); }
+    /// The round's settings: the parameter's eigen-solver.
+    LanczosSettings Settings() const {
+        LanczosSettings settings;
+        settings.method = std::get<1>(GetParam());
+        return settings;
+    }
+};
 
 TEST_P(RoundCertificate, CertifiedOptimumAgreesWithTheCentralCheck) {
-    const int robots = GetParam();
+    const int robots = Robots();
     Eigen::MatrixXd truth;
     const slam::PoseGraph noisy = testing::NoisySphere(5, 10, 0.05, 0.1, 17, &truth);
     const slam::Partition partition = slam::ContiguousPartition(noisy.n, robots);
@@ -53,7 +67,8 @@ TEST_P(RoundCertificate, CertifiedOptimumAgreesWithTheCentralCheck) {
     ASSERT_EQ(solved.status, StaircaseResult::Status::kCertified);
     const CertificateResult central = Certify(slam::ConnectionLaplacian(graph), solved.X, 3);
     ASSERT_EQ(central.status, CertificateResult::Status::kCertified) << central.reason;
-    const DistributedCertificate dist = CertifyDistributed(graph, solved.X, partition);
+    const DistributedCertificate dist =
+        CertifyDistributed(graph, solved.X, partition, {}, Settings());
     ASSERT_EQ(static_cast<int>(dist.robots.size()), robots);
     for (const auto& r : dist.robots) {
         EXPECT_EQ(r.status, DistributedVerdict::Status::kConverged);
@@ -66,14 +81,14 @@ TEST_P(RoundCertificate, CertifiedOptimumAgreesWithTheCentralCheck) {
 }
 
 TEST_P(RoundCertificate, SaddleIsNotOptimalAndHasNoBound) {
-    const int robots = GetParam();
+    const int robots = Robots();
     const int n = 8;
     const slam::Partition partition = slam::ContiguousPartition(n, robots);
     const slam::PoseGraph graph = WithRobotIds(testing::IdentityCycle(3, n), partition);
     const Eigen::MatrixXd X = testing::TwistedCycle(3, n);
     const CertificateResult central = Certify(slam::ConnectionLaplacian(graph), X, 3);
     ASSERT_EQ(central.status, CertificateResult::Status::kNotOptimal);
-    const DistributedCertificate dist = CertifyDistributed(graph, X, partition);
+    const DistributedCertificate dist = CertifyDistributed(graph, X, partition, {}, Settings());
     ExpectAgree(dist.certificate, central);
     EXPECT_FALSE(dist.certificate.has_bound);
     EXPECT_LT(dist.certificate.lambda_min, 0.0);
@@ -94,8 +109,29 @@ TEST(RoundCertificate, NonCriticalPointGetsNoEigenvalueAndNoBound) {
                 kRelative * central.gradient_norm);
 }
 
-INSTANTIATE_TEST_SUITE_P(Robots, RoundCertificate, ::testing::Values(2, 4, 8),
-                         [](const auto& info) { return std::to_string(info.param) + "Robots"; });
+TEST_P(RoundCertificate, TinyGrid3DRbcdOptimumAtRankFiveIsCertified) {
+    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/tinyGrid3D.g2o");
+    ASSERT_TRUE(read.ok()) << read.error;
+    const slam::Partition partition = slam::ContiguousPartition(read.graph.n, Robots());
+    const slam::PoseGraph graph = WithRobotIds(read.graph, partition);
+    const StaircaseResult solved =
+        SolveCertified(graph, partition, slam::LiftToRank(slam::ChordalInitialization(graph), 5));
+    ASSERT_EQ(solved.status, StaircaseResult::Status::kCertified);
+    const DistributedCertificate dist =
+        CertifyDistributed(graph, solved.X, partition, {}, Settings());
+    ExpectAgree(dist.certificate, Certify(slam::ConnectionLaplacian(graph), solved.X, 3));
+    EXPECT_EQ(dist.certificate.status, CertificateResult::Status::kCertified)
+        << dist.certificate.reason;
+}
+
+INSTANTIATE_TEST_SUITE_P(RobotsAndSolver, RoundCertificate,
+                         ::testing::Combine(::testing::Values(2, 4, 8),
+                                            ::testing::Values(Method::kLanczos, Method::kLobpcg)),
+                         [](const auto& info) {
+                             return std::to_string(std::get<0>(info.param)) + "Robots" +
+                                    (std::get<1>(info.param) == Method::kLobpcg ? "Lobpcg"
+                                                                                : "Lanczos");
+                         });
 
 }  // namespace
 }  // namespace certislam::certify

@@ -33,6 +33,7 @@ struct SolveOptions {
     bool quiet = false;
     bool distributed = false;
     std::string transport = "inproc";
+    std::string eigensolver = "lanczos";
     double timeout_s = 600.0;
     double max_relative_bound = certify::CertificateConfig{}.max_relative_bound;
 };
@@ -157,6 +158,10 @@ void AddOptions(CLI::App& app, SolveOptions& o) {
                    "--distributed: inproc (one process), or ipc / tcp (a `certislam robot` "
                    "process per robot on this host)")
         ->check(CLI::IsMember({"inproc", "ipc", "tcp"}));
+    app.add_option("--eigensolver", o.eigensolver,
+                   "--distributed: the certificate's eigen-solver, lanczos or lobpcg (block-Jacobi "
+                   "preconditioned; certifier.eigensolver)")
+        ->check(CLI::IsMember({"lanczos", "lobpcg"}));
     app.add_option("--timeout", o.timeout_s, "--distributed: give up after this many seconds")
         ->check(CLI::PositiveNumber);
 }
@@ -172,6 +177,10 @@ int CheckOptionCombinations(const SolveOptions& o) {
         std::fprintf(stderr,
                      "certislam solve: error: --distributed: no --method lm, --robust, "
                      "--rank or --out\n");
+        return kExitUsage;
+    }
+    if (!o.distributed && o.eigensolver != "lanczos") {
+        std::fprintf(stderr, "certislam solve: error: --eigensolver needs --distributed\n");
         return kExitUsage;
     }
     if (!o.distributed && o.transport != "inproc") {
@@ -206,6 +215,7 @@ int RunSolve(int argc, char** argv) {
         d.json = o.json;
         d.max_relative_bound = o.max_relative_bound;
         d.transport = o.transport;
+        d.eigensolver = o.eigensolver;
         return RunDistributedSolve(graph, d);
     }
     certify::PoseGraphSolverConfig config;

@@ -82,6 +82,7 @@ nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partit
     for (int k = 0; k < robots; ++k) config["robots"].push_back(k);
     config["quiet_s"] = o.quiet_s;
     config["certifier"]["max_relative_bound"] = o.max_relative_bound;
+    config["certifier"]["eigensolver"] = o.eigensolver;
     config["source"] = {{"kind", "pose_graph"}, {"graph", fs::absolute(o.file).string()}};
     for (int k = 0; k < robots; ++k) {
         config["source"]["ranges"][std::to_string(k)] = {{"begin", partition.begin[k]},
@@ -275,6 +276,7 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
     fs::remove_all(dir);
     const actors::PoseGraphTeamResult result = MergeRobotReports(reports);
     nlohmann::json j = TeamResultJson(result, partition.num_robots(), o.transport);
+    j["eigensolver"] = o.eigensolver;
     j["peak_rss_mb"] = peak;  // the largest robot process
     j["peak_rss_mb_by_robot"] = rss;
     j["wall_seconds"] = wall;  // processes started, graph read, solved, certified, exited

@@ -13,6 +13,9 @@
 namespace certislam::certify {
 namespace {
 
+/// Iterations without the recurrence residual halving before S X is recomputed exactly.
+constexpr int kStallIterations = 5;
+
 constexpr int kSetupStage = 0;              ///< reduction of the setup sums (step 0)
 constexpr int kSumsStage = 1;               ///< the reduction of exchange e (step e)
 constexpr std::uint64_t kRobotSeed = 7919;  ///< start block seed stride per robot
@@ -318,7 +321,13 @@ void LobpcgParticipant::OnSums(const std::vector<double>& sums) {
     verdict_.residual_estimate = std::sqrt(sums[2] / sums[0]);
     ritz_ = X_.col(0) / std::sqrt(sums[0]);
     if (verdict_.residual_estimate <= limit_) return Finish(DistributedVerdict::Status::kConverged);
-    if (purpose_ == Purpose::kFinalVerify || !Update()) {
+    if (purpose_ == Purpose::kFinalVerify) return Finish(DistributedVerdict::Status::kNotConverged);
+    if (refresh_) {  // AX_ is exact now (PartialSums); X_ and theta_ are the last Ritz pairs
+        refresh_ = false;
+        P_.resize(X_.rows(), 0);
+        AP_.resize(X_.rows(), 0);
+        ++progress_.restarts;
+    } else if (!Update()) {
         return Finish(DistributedVerdict::Status::kNotConverged);
     }
     Iterate();
@@ -340,6 +349,17 @@ void LobpcgParticipant::OnIterationSums(const std::vector<double>& sums) {
     Eigen::VectorXd residual(m);
     for (Eigen::Index j = 0; j < m; ++j) residual(j) = std::sqrt(sums[from + j]);
     if (residual(0) <= limit_) return Verify(false);  // on the recurrence: check exactly
+    // The recurrences for S X and S P drift from the exact products (LOBPCG's known instability,
+    // Hetmaniuk and Lehoucq 2006): a residual that stopped falling restarts from an exact S X
+    // without P. Every robot decides it from the same sums.
+    if (stalled_ == 0 || residual(0) < 0.5 * best_residual_) {
+        best_residual_ = residual(0);
+        stalled_ = 1;
+    } else if (++stalled_ > kStallIterations) {
+        stalled_ = 0;
+        refresh_ = true;
+        return Verify(false);
+    }
     for (Eigen::Index j = 1; j < m; ++j) active_[static_cast<size_t>(j)] = residual(j) > limit_;
     if (!Update()) return Verify(true);
     Iterate();

@@ -91,6 +91,9 @@ class LobpcgParticipant : public RoundParticipant {
     LobpcgGram gram_;                  ///< the last iteration's reduced Gram matrices
     Eigen::MatrixXd W_, AW_;           ///< the last iteration's W and S W
     Eigen::VectorXd ritz_;             ///< own segment of the verified unit Ritz vector
+    double best_residual_ = 0.0;       ///< smallest recurrence residual since the last refresh
+    int stalled_ = 0;                  ///< iterations since best_residual_ last halved
+    bool refresh_ = false;             ///< the verify in progress restarts from exact S X
     /// vector step -> robot -> (ids, values)
     std::map<int, std::map<int, std::pair<std::vector<slam::PoseId>, Eigen::VectorXd>>> vectors_;
     /// (step, stage) -> robot -> partial sums

@@ -14,7 +14,7 @@ namespace certislam::certify {
 namespace {
 
 /// Iterations without the recurrence residual halving before S X is recomputed exactly.
-constexpr int kStallIterations = 5;
+constexpr int kStallIterations = 10;
 
 constexpr int kSetupStage = 0;              ///< reduction of the setup sums (step 0)
 constexpr int kSumsStage = 1;               ///< the reduction of exchange e (step e)

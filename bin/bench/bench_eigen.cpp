@@ -148,6 +148,7 @@ int RunEigenBench(int argc, char** argv) {
             certify::CertificateMatrix(Q, certify::LambdaBlocks(Q, X, graph.d), graph.d);
         const slam::Partition partition = slam::ContiguousPartition(graph.n, robots);
         std::vector<certify::CertificateRows> split;
+        split.reserve(static_cast<size_t>(robots));
         for (int k = 0; k < robots; ++k) {
             split.push_back(certify::MakeCertificateRows(Q, X, graph.d, partition, k));
         }

@@ -54,7 +54,8 @@ bool SolveOn(const LobpcgGram& z, const std::vector<int>& keep, int wanted, doub
 
 RayleighRitzResult SolveRayleighRitz(const LobpcgGram& z, int wanted, double drop_tolerance) {
     RayleighRitzResult out;
-    std::vector<int> all(static_cast<size_t>(z.x + z.w + z.p));
+    std::vector<int> all(static_cast<size_t>(z.x) + static_cast<size_t>(z.w) +
+                         static_cast<size_t>(z.p));
     for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
     if (z.p > 0) {
         // A full-rank [X W P] first; any dependent direction restarts without P.
@@ -63,7 +64,7 @@ RayleighRitzResult SolveRayleighRitz(const LobpcgGram& z, int wanted, double dro
         }
         out = RayleighRitzResult{};
         out.dropped_p = true;
-        all.resize(static_cast<size_t>(z.x + z.w));
+        all.resize(static_cast<size_t>(z.x) + static_cast<size_t>(z.w));
     }
     SolveOn(z, all, wanted, drop_tolerance, &out);
     out.dropped_p = z.p > 0;

@@ -9,6 +9,7 @@
 #include <span>
 
 #include "actors/convert.h"
+#include "certify/distributed/distributed_lobpcg.h"
 #include "certislam/v1/control.pb.h"
 #include "tests/fuzz/fuzz_frames.h"
 #include "tests/fuzz/fuzz_quiet_protobuf.h"
@@ -120,9 +121,15 @@ void Round(const Frames& frames) {
 void Vector(const Frames& frames) {
     const auto proto = Parse<v1::CertificateVector>(frames);
     const auto vector = proto ? actors::FromProto(*proto) : std::nullopt;
-    if (vector && (!vector->values.allFinite() || vector->step < 0 ||
-                   vector->values.size() !=
-                       static_cast<Eigen::Index>(actors::kCertificateBlock * vector->ids.size()))) {
+    // One column (Lanczos) or a block of 1 to kMaxBlockSize columns (LOBPCG) per pose id.
+    const auto per_column =
+        vector ? static_cast<Eigen::Index>(actors::kCertificateBlock * vector->ids.size()) : 0;
+    const bool columns = vector && (per_column == 0 ? vector->values.size() == 0
+                                                    : vector->values.size() % per_column == 0 &&
+                                                          vector->values.size() >= per_column &&
+                                                          vector->values.size() / per_column <=
+                                                              certify::kMaxBlockSize);
+    if (vector && (!vector->values.allFinite() || vector->step < 0 || !columns)) {
         Fail("accepted certificate vector with non-finite values or a wrong count");
     }
 }

@@ -144,6 +144,15 @@ class Distributed : public ::testing::Test {
     }
     void TearDown() override { std::filesystem::remove_all(dir_); }
 
+    /// CURVE keys robot0 and robot1 in the test folder, by `certislam keygen`.
+    void MakeKeys() {
+        for (int r = 0; r < 2; ++r) {
+            const auto keygen = testing::Shell(Binary() + " keygen --out " +
+                                               (dir_ / ("robot" + std::to_string(r))).string());
+            ASSERT_EQ(keygen.exit_code, 0) << keygen.out;
+        }
+    }
+
     std::string WriteConfig() {
         const int base = FreePortBase();
         std::ofstream out(dir_ / "team.json");
@@ -165,11 +174,8 @@ class Distributed : public ::testing::Test {
 };
 
 TEST_F(Distributed, TwoRobotProcessesOverTcpEqualTheSingleProcessRun) {
-    for (int r = 0; r < 2; ++r) {
-        const auto keygen = testing::Shell(Binary() + " keygen --out " +
-                                           (dir_ / ("robot" + std::to_string(r))).string());
-        ASSERT_EQ(keygen.exit_code, 0) << keygen.out;
-    }
+    MakeKeys();
+    if (HasFatalFailure()) return;
     const std::string config = WriteConfig();
     const auto local = testing::Shell(Binary() + " run " + config + " --json --timeout 120 --out " +
                                       (dir_ / "local").string() + " 2>&1");
@@ -218,12 +224,8 @@ TEST_F(Distributed, TwoRobotProcessesOverTcpEqualTheSingleProcessRun) {
 }
 
 TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum) {
-    for (int r = 0; r < 2; ++r) {
-        ASSERT_EQ(testing::Shell(Binary() + " keygen --out " +
-                                 (dir_ / ("robot" + std::to_string(r))).string())
-                      .exit_code,
-                  0);
-    }
+    MakeKeys();
+    if (HasFatalFailure()) return;
     const std::string config = WriteConfig();
     const auto local = testing::Shell(Binary() + " run " + config + " --json --timeout 120 --out " +
                                       (dir_ / "local").string() + " 2>&1");
@@ -262,12 +264,8 @@ TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum)
 // same graph and ends certified with the checkpointed state, equal to the team's result, instead
 // of waiting for peers that are gone until its timeout (exit 3).
 TEST_F(Distributed, RobotRestartedAfterItsTeamLeftEndsWithTheCertifiedStateOfItsLog) {
-    for (int r = 0; r < 2; ++r) {
-        ASSERT_EQ(testing::Shell(Binary() + " keygen --out " +
-                                 (dir_ / ("robot" + std::to_string(r))).string())
-                      .exit_code,
-                  0);
-    }
+    MakeKeys();
+    if (HasFatalFailure()) return;
     const std::string config = WriteConfig();
     const std::string robot =
         Binary() + " robot " + config + " --json --log-dir " + (dir_ / "logs").string() + " --id ";

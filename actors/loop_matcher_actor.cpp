@@ -316,11 +316,21 @@ void LoopMatcherActor::Tick() {
     if (pcm_dirty_) Reconcile();  // once per tick: a burst of verified loops, one clique search
     bool done = pending_.empty() && deferred_.empty();
     for (int r : Wiring().robots) done = done && (r > RobotId() || StreamEnded(r));
+    // A subscriber that (re)joined after we sent (a restarted robot's solver) gets every loop
+    // accepted now again; solvers ignore verdicts they already hold.
+    const std::size_t subscribers = loops_out_->subscribers();
+    if (subscribers > seen_subscribers_) {
+        for (const auto& [ends, loop] : sent_) SendLoop(ToProto(loop), loop.inter_robot());
+    }
+    seen_subscribers_ = subscribers;
     if (!done) return;
     ended_ = true;
     v1::Shutdown end;
     *end.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     end.set_reason(kEndOfLoops);
+    std::uint64_t inter = 0;
+    for (const auto& [ends, loop] : sent_) inter += loop.inter_robot() ? 1 : 0;
+    end.set_count(inter);  // a solver holding fewer inter-robot loops of ours waits for them
     Send(*loops_out_, transport::Pack(end), true);
 }
 

@@ -122,6 +122,7 @@ class LoopMatcherActor final : public NodeActor {
     bool pcm_dirty_ = false;  ///< a loop was verified since the last Reconcile()
     std::map<std::pair<slam::PoseId, slam::PoseId>, slam::LoopClosure> sent_;  ///< accepted now
     std::int64_t last_version_ = 0;
+    std::size_t seen_subscribers_ = 0;  ///< subscribers of loops_out_ at the last tick
     std::atomic<int> loops_{0};
     std::atomic<int> rejected_{0};
     std::atomic<int> verified_{0};

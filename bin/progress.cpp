@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <sstream>
 #include <thread>
@@ -19,7 +20,13 @@ std::string ProgressLine(const std::vector<actors::SolverSnapshot>& snapshots, d
     int done = 0, keyframes = 0, loops = 0;
     std::uint64_t steps = 0;
     std::string verdict = "none";
+    // The solvers' phase: the graph still growing, synchronous rounds once it is final, converged.
+    bool all_final = !snapshots.empty(), all_converged = !snapshots.empty();
+    std::uint64_t rounds = 0;
     for (const auto& s : snapshots) {
+        all_final = all_final && s.final;
+        all_converged = all_converged && s.rounds_converged;
+        rounds = std::max(rounds, s.team_rounds);
         const bool certified = s.report && s.report->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
         done += s.final && certified ? 1 : 0;
         keyframes += s.num_poses;
@@ -36,8 +43,13 @@ std::string ProgressLine(const std::vector<actors::SolverSnapshot>& snapshots, d
     // Each robot counts an inter-robot loop it holds an end of: a loop between two is counted
     // twice in one process, once by a robot alone.
     out << done << "/" << robots << " robots certified, " << keyframes << " keyframes, " << loops
-        << " inter-robot loop ends, " << steps << " block updates, last verdict: " << verdict
-        << ", " << static_cast<int>(seconds) << " s";
+        << " inter-robot loop ends, " << steps << " block updates, ";
+    if (!all_final) {
+        out << "graph growing";
+    } else {
+        out << rounds << " team rounds" << (all_converged ? " (converged)" : "");
+    }
+    out << ", last verdict: " << verdict << ", " << static_cast<int>(seconds) << " s";
     return out.str();
 }
 

@@ -246,6 +246,18 @@ run_case() {
     wall=$(elapsed "$start")
     python3 "$tools" row "$1" "$team_n" "$dir" "$reference" "$wall" "$codes" "$note" >>"$rows"
     tail -n 1 "$rows"
+    # Not healed: each robot's last status lines and report, so CI's output says where it stuck.
+    if ! tail -n 1 "$rows" | grep -q '"healed": true'; then
+        local f
+        for f in "$dir"/robot*.log.*; do
+            [ -s "$f" ] && { echo "--- $f"; tail -n 3 "$f"; }
+        done >&2
+        for f in "$dir"/robot*.report.json; do
+            [ -s "$f" ] && python3 -c 'import json, sys
+r = json.load(open(sys.argv[1])); r.pop("mesh", None)
+print("---", sys.argv[1], json.dumps(r))' "$f"
+        done >&2
+    fi
 }
 
 fault_reference() { start_team "$dir"; wait_team; }

@@ -125,6 +125,25 @@ TEST(LoopMatcherActors, AliasedKeyframesMakeFalseLoopsThatDoNotStayWithTheSolver
             << "solver has " << s->Snapshot().inter_robot_loops << ", matcher accepted "
             << accepted_inter;
     }
+    // A subscriber that joins after the loops went out (a restarted robot's solver) gets every
+    // accepted loop again, and an end marker that counts the inter-robot ones.
+    transport::Endpoint late(context, ClientConfig(InprocWiring(0, robots), Edge::kLoops, 1));
+    std::set<std::pair<slam::PoseId, slam::PoseId>> resent;
+    std::optional<std::uint64_t> counted;
+    const auto late_deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while ((!counted || resent.size() < static_cast<size_t>(matchers[1]->LoopsFound())) &&
+           std::chrono::steady_clock::now() < late_deadline) {
+        while (auto m = late.Receive(std::chrono::milliseconds(10))) {
+            if (auto proto = transport::Unpack<v1::LoopClosure>(*m)) {
+                if (auto loop = FromProto(*proto)) resent.insert({loop->a, loop->b});
+            } else if (auto end = transport::Unpack<v1::Shutdown>(*m)) {
+                if (end->reason() == kEndOfLoops) counted = end->count();
+            }
+        }
+    }
+    EXPECT_EQ(static_cast<int>(resent.size()), matchers[1]->LoopsFound());
+    ASSERT_TRUE(counted.has_value()) << "no end of loops after the late subscriber joined";
+    EXPECT_EQ(static_cast<int>(*counted), accepted_inter);
     for (auto& a : actors) EXPECT_EQ(a->Counters().dropped_malformed, 0u) << a->Name();
     for (auto& a : actors) a->Stop();
 }

@@ -22,7 +22,17 @@ struct RobotNodeConfig {
     IngestConfig ingest;                   ///< pacing
     slam::ScanContextConfig scan_context;  ///< descriptor
     LoopMatcherConfig matcher;             ///< loop closures
-    SolverActorConfig solver;              ///< RBCD
+    /// RBCD of a growing graph: asynchronous updates while keyframes and loops arrive (the
+    /// mappers' live estimate), then synchronous RBCD++ rounds once the graph is final, to the
+    /// gradient the certificate needs (the error of S is first order in it): the back end that
+    /// `solve --distributed` measures. synchronous = false: asynchronous RBCD throughout.
+    SolverActorConfig solver = [] {
+        SolverActorConfig c;
+        c.synchronous = true;
+        c.async_until_final = true;
+        c.rounds.rel_grad_tol = 1e-10;
+        return c;
+    }();
     CertifierConfig certifier;             ///< certificate
     MapperConfig mapper;                   ///< TSDF submaps
     bool mapping = true;  ///< run the mapper (when the wiring has map addresses for every robot)

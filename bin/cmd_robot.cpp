@@ -33,7 +33,10 @@ int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
     const actors::RobotNodeConfig own = NodeConfigFor(config, id);
     actors::PoseGraphNodeConfig node_config;
     node_config.solver = own.solver;
-    node_config.solver.synchronous = true;  // RBCD++ rounds, as pose_graph_node.h's default
+    // The whole graph is known: RBCD++ rounds from the start, to solve --distributed's tolerance.
+    node_config.solver.synchronous = true;
+    node_config.solver.async_until_final = false;
+    node_config.solver.rounds = actors::PoseGraphNodeConfig{}.solver.rounds;
     node_config.certifier = own.certifier;
     node_config.quiet = own.quiet;
     const auto start = std::chrono::steady_clock::now();

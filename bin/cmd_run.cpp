@@ -21,7 +21,10 @@ int RunPoseGraph(const TeamConfig& config, double timeout_s, bool json) {
     const auto graphs = LoadPoseGraphSource(config.path, config.source, config.robots);
     actors::PoseGraphNodeConfig node;
     node.solver = config.node.solver;
-    node.solver.synchronous = true;  // the whole graph is known: RBCD++ rounds (pose_graph_node.h)
+    // The whole graph is known: RBCD++ rounds from the start, to solve --distributed's tolerance.
+    node.solver.synchronous = true;
+    node.solver.async_until_final = false;
+    node.solver.rounds = actors::PoseGraphNodeConfig{}.solver.rounds;
     node.certifier = config.node.certifier;
     node.quiet = config.node.quiet;
     const auto result =

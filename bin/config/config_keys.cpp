@@ -167,6 +167,12 @@ std::vector<ConfigKey> SolverAndCertifierKeys() {
             "solver.rel_grad_tol",
             [](TeamConfig & c, int) -> auto& { return c.node.solver.solver.rbcd.rel_grad_tol; },
             {0.0, 1.0, true, true}, "RBCD stops at ||grad|| <= this * max(1, f)"),
+        Choice<bool>(
+            "solver.mode", [](TeamConfig & c, int) -> auto& { return c.node.solver.synchronous; },
+            {{"rounds", true}, {"asynchronous", false}},
+            "keyframe sources: asynchronous RBCD while the graph grows, then synchronous RBCD++ "
+            "rounds once it is final (rounds), or asynchronous RBCD throughout; pose graphs: "
+            "rounds"),
         Num<double>(
             "solver.odometry_sigma_t_m", [](TeamConfig & c, int) -> auto& {
                 return c.node.solver.solver.noise.odometry_sigma_t_m;

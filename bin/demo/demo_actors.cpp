@@ -22,12 +22,6 @@ actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate)
     config.mapping = voxel_m > 0;
     if (config.mapping) config.mapper.map.tsdf.voxel_size_m = voxel_m;
     config.solver.solver.rank = 5;
-    // A recorded mission: asynchronous RBCD while the graph grows (the mappers' live estimate),
-    // then synchronous RBCD++ rounds on the final graph, to the tolerance the certificate needs
-    // (the error of S is first order in the gradient).
-    config.solver.synchronous = true;
-    config.solver.async_until_final = true;
-    config.solver.rounds.rel_grad_tol = 1e-10;
     config.solver.solver.rbcd.rel_grad_tol = 1e-9;
     // The certifiers run the distributed check (every robot its rows of S; the default), the
     // anchor's centralised check only as the fallback of a silent round; false: the anchor's

@@ -250,7 +250,7 @@ run_case() {
     if ! tail -n 1 "$rows" | grep -q '"healed": true'; then
         local f
         for f in "$dir"/robot*.log.*; do
-            [ -s "$f" ] && { echo "--- $f"; tail -n 3 "$f"; }
+            [ -s "$f" ] && { echo "--- $f"; grep -a "robots certified" "$f" | tail -n 2; }
         done >&2
         for f in "$dir"/robot*.report.json; do
             [ -s "$f" ] && python3 -c 'import json, sys

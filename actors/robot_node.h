@@ -30,7 +30,7 @@ struct RobotNodeConfig {
         SolverActorConfig c;
         c.synchronous = true;
         c.async_until_final = true;
-        c.rounds.rel_grad_tol = 1e-10;
+        c.rounds.rel_grad_tol = 1e-9;
         return c;
     }();
     CertifierConfig certifier;             ///< certificate

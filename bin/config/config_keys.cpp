@@ -174,6 +174,12 @@ std::vector<ConfigKey> SolverAndCertifierKeys() {
             "rounds once it is final (rounds), or asynchronous RBCD throughout; pose graphs: "
             "rounds"),
         Num<double>(
+            "solver.rounds_rel_grad_tol",
+            [](TeamConfig & c, int) -> auto& { return c.node.solver.rounds.rel_grad_tol; },
+            {0.0, 1.0, true, true},
+            "solver.mode rounds on a keyframe source: the rounds stop at ||grad|| <= this * "
+            "max(1, f) (pose graphs: solve --distributed's)"),
+        Num<double>(
             "solver.odometry_sigma_t_m", [](TeamConfig & c, int) -> auto& {
                 return c.node.solver.solver.noise.odometry_sigma_t_m;
             },

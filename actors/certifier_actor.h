@@ -33,7 +33,13 @@ struct CertifierConfig {
     int max_staircase_steps = 3;             ///< saddle escapes at most, >= 0
     std::chrono::milliseconds period{200};   ///< checks at most this often, > 0
     bool distributed = true;  ///< every robot's rows of S, S*v between neighbours; false: anchor
-    certify::LanczosSettings lanczos;               ///< the distributed eigen-solver
+    /// The distributed eigen-solver: block-Jacobi preconditioned LOBPCG by default (a few times
+    /// fewer neighbour exchanges than Lanczos on every benchmark graph, BENCHMARKS.md).
+    certify::LanczosSettings lanczos = [] {
+        certify::LanczosSettings s;
+        s.method = certify::LanczosSettings::Method::kLobpcg;
+        return s;
+    }();
     std::chrono::milliseconds round_timeout{5000};  ///< a round silent this long: the anchor
                                                     ///< checks that graph centrally
     std::chrono::milliseconds round_resend{500};    ///< a round silent this long: last messages

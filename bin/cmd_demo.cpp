@@ -94,7 +94,7 @@ int RunDemo(int argc, char** argv) {
         ->check(CLI::PositiveNumber);
     std::string certificate = "distributed";
     app.add_option("--certificate", certificate,
-                   "distributed (every robot its rows of S, Lanczos over the sockets; default) or "
+                   "distributed (every robot its rows of S, LOBPCG over the sockets; default) or "
                    "centralised (the anchor checks the joint certificate alone; faster)")
         ->check(CLI::IsMember({"distributed", "centralised"}));
     app.add_flag("--quiet", options.quiet, "no progress bar");

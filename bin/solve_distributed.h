@@ -20,7 +20,7 @@ struct DistributedSolveOptions {
     double max_relative_bound = 1e-6;     ///< certified needs a relative bound at most this
     double quiet_s = 0.3;                 ///< done: certified and unchanged this long
     std::string transport = "inproc";     ///< inproc (one process), ipc or tcp (robot processes)
-    std::string eigensolver = "lanczos";  ///< the certificate's: lanczos or lobpcg
+    std::string eigensolver = "lobpcg";  ///< the certificate's: lobpcg or lanczos
 };
 
 /// The report of a pose-graph team run (cost, verdict, team rounds, bytes between robots by

@@ -72,10 +72,12 @@ TEST(SolveDistributed, LobpcgCertifiesTheInProcessOptimumInFewerExchangesThanLan
         const std::string args =
             "solve " + Data(file) + " --robots " + std::to_string(robots) + " --distributed";
         const auto central = Json("solve " + Data(file) + " --robots 1 --quiet");
-        const auto lanczos = Json(args);
-        const auto lobpcg = Json(args + " --eigensolver lobpcg");
+        const auto lanczos = Json(args + " --eigensolver lanczos");
+        const auto lobpcg = Json(args);  // the default
         ASSERT_FALSE(lobpcg.is_discarded());
         EXPECT_EQ(lobpcg["eigensolver"], "lobpcg");
+        EXPECT_EQ(lanczos["eigensolver"], "lanczos");
+        EXPECT_EQ(lanczos["verdict"], "certified") << file;
         EXPECT_EQ(lobpcg["verdict"], "certified") << file;
         EXPECT_LE(RelDiff(lobpcg["cost"].get<double>(), central["cost"].get<double>()), kRelCost)
             << file;

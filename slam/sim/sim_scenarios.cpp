@@ -138,9 +138,15 @@ void Sequential(SimulatorConfig* config) {
 }  // namespace
 
 const std::vector<std::string>& ScenarioNames() {
-    static const std::vector<std::string> names{"city", "tunnel-rendezvous", "large-drift",
+    static const std::vector<std::string> names{"tunnel-rendezvous", "city", "large-drift",
                                                 "swarm"};
     return names;
+}
+
+std::uint64_t ScenarioDefaultSeed(const std::string& name) {
+    // Seed 3 draws drift under which LM from odometry stops at a critical point (the
+    // certificate's refusal is the demo's point); with seed 1 it stops short of one.
+    return name == "tunnel-rendezvous" ? 3 : 1;
 }
 
 int ScenarioDefaultRobots(const std::string& name) {

@@ -67,12 +67,12 @@ int RunDemo(int argc, char** argv) {
     DemoOptions options;
     CLI::App app{"Simulated multi-robot mission end to end: Table I and files in --out."};
     app.add_option("--scenario", options.scenario,
-                   "simulated mission: city (default), tunnel-rendezvous, large-drift, swarm")
+                   "simulated mission: tunnel-rendezvous (default), city, large-drift, swarm")
         ->check(CLI::IsMember(slam::ScenarioNames()));
     app.add_option("--robots", options.robots, "number of robots (default: the scenario's)")
         ->check(CLI::Range(1, 16));
     app.add_option("--out", options.out_dir, "output folder (trajectories, graph, mesh, plot)");
-    app.add_option("--seed", options.seed, "simulator seed");
+    app.add_option("--seed", options.seed, "simulator seed (default, or 0: the scenario's)");
     app.add_option("--keyframes", options.max_keyframes,
                    "keyframes per robot at most (0: whole routes; small values for quick tests)")
         ->check(CLI::NonNegativeNumber);

@@ -127,6 +127,16 @@ void SetBound(double bound_eta, int d, int n, CertificateResult* result) {
     result->suboptimality_bound = std::max(result->objective - result->lower_bound, 0.0);
 }
 
+/// The largest eta whose bound eta d n still certifies: the relative allowance left after the gap
+/// f - tr(Lambda), as FinishBound measures it, with a tenth spare; 0 when nothing is left.
+double CertifyingEta(const CertificateQuantities& q, const CertificateConfig& config,
+                     const CertificateResult& result) {
+    const double scale = std::max(result.objective, q.objective_noise);
+    const double allowance =
+        config.max_relative_bound * scale - (result.objective - result.dual_value);
+    return allowance > 0.0 ? 0.9 * allowance / (q.d * q.n) : 0.0;
+}
+
 /// Rungs of the bound ladder: config.bound_refinements, or more (up to kMaxRefinements) when
 /// eta 10^-k d n must fall below max_relative_bound f(X) for a bound tight enough to certify
 /// (graphs whose ||Q|| is large against f, e.g. kitti's odometry weights).
@@ -392,7 +402,11 @@ void SecondOrderVerdict(const CertificateQuantities& q, std::optional<double> la
         VerdictAndBound(result->eta, *lambda_min, Refinements(config, q.d, q.n, *result), psd_at);
     result->psd_at_eta = search.psd_at_eta;
     if (search.psd_at_eta) {
-        SetBound(search.bound_eta, q.d, q.n, result);
+        // The ladder's rungs are a decade apart: when the lowest passing one bounds too loosely
+        // to certify, the eta just tight enough may still factorize.
+        const double certifying = CertifyingEta(q, config, *result);
+        const bool between = certifying > 0.0 && certifying < search.bound_eta;
+        SetBound(between && psd_at(certifying) ? certifying : search.bound_eta, q.d, q.n, result);
         return FinishBound(q, config, result);
     }
     // S + eta D not PSD proves x^T S x < -eta x^T D x for some x (D >= 0: S is not PSD either);

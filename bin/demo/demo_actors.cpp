@@ -49,6 +49,9 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
         result->inter_robot_loops.push_back(snapshot.inter_robot_loops);
         loop_ends += snapshot.inter_robot_loops;  // each such loop touches two robots
         result->loops_found.push_back(node->LoopsFound());
+        const actors::LoopMatcherActor& matcher = node->Matcher();
+        result->registrations.push_back(matcher.Verified() + matcher.Rejected());
+        result->loops_verified.push_back(matcher.Verified());
         result->solver_steps.push_back(snapshot.steps);
         result->edges.insert(result->edges.end(), snapshot.edges.begin(), snapshot.edges.end());
         result->bytes_sent += node->BytesSentToPeers();
@@ -79,6 +82,7 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
     result->team_inter_robot_loops = loop_ends / 2;
     const actors::CertifierActor& anchor = nodes.front()->Certifier();
     result->certificate_rounds = anchor.Rounds();
+    result->saddle_escapes = anchor.Escapes();
     result->lanczos_steps = anchor.LanczosSteps();
     result->settled_skips = anchor.SettledSkips();
 }

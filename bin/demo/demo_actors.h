@@ -35,12 +35,15 @@ struct ActorMissionResult {
     std::vector<int> inter_robot_loops;         ///< [robot] inter-robot loops its solver knows
     int team_inter_robot_loops = 0;             ///< distinct inter-robot loops in the team graph
     std::vector<int> loops_found;               ///< [robot] loops its matcher accepts at the end
+    std::vector<int> registrations;             ///< [robot] candidates its matcher registered
+    std::vector<int> loops_verified;            ///< [robot] of those, registration accepted
     std::vector<std::uint64_t> solver_steps;    ///< [robot] block updates its solver made
     std::uint64_t bytes_sent = 0;               ///< bytes on edges between robots, measured
     slam::TriangleMesh mesh;  ///< robot 0's mapper: every robot's submaps fused, team frame
     int submaps = 0;          ///< submaps in robot 0's map (own + received)
     std::uint64_t map_bytes_sent = 0;  ///< compressed submap bytes the mappers sent to peers
     int certificate_rounds = 0;        ///< distributed rounds robot 0's certifier finished
+    int saddle_escapes = 0;            ///< saddle escapes robot 0's certifier made
     std::uint64_t lanczos_steps = 0;   ///< their Lanczos steps (S v exchanges), all rounds
     int settled_skips = 0;  ///< changed bundles robot 0 did not re-check (settled, certified)
     std::map<std::string, std::uint64_t> bytes_by_actor;  ///< bytes_sent per actor, all robots

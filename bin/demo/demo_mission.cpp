@@ -46,8 +46,9 @@ struct SimulatedTeam {
 };
 
 slam::SimScenario Scenario(const DemoOptions& options) {
-    auto scenario =
-        slam::MakeScenario(options.scenario, options.robots, options.seed, options.sequential);
+    const std::uint64_t seed =
+        options.seed > 0 ? options.seed : slam::ScenarioDefaultSeed(options.scenario);
+    auto scenario = slam::MakeScenario(options.scenario, options.robots, seed, options.sequential);
     if (!scenario) throw std::invalid_argument("--scenario " + options.scenario + ": unknown");
     if (options.tunnel_slip >= 0.0) scenario->config.tunnel_slip = options.tunnel_slip;
     return *scenario;
@@ -262,8 +263,8 @@ std::string PipelineText(bool actors) {
 std::string MissionText(const slam::SimScenario& scenario, const DemoOptions& options) {
     return scenario.name + ": " + std::to_string(scenario.config.num_robots) + " robots " +
            (options.sequential ? "driving one after another" : "driving at once") + "; " +
-           scenario.description + " (seed " + std::to_string(options.seed) + ", tunnel slip " +
-           Fixed(100.0 * scenario.config.tunnel_slip) + " %)";
+           scenario.description + " (seed " + std::to_string(scenario.config.seed) +
+           ", tunnel slip " + Fixed(100.0 * scenario.config.tunnel_slip) + " %)";
 }
 
 /// The certified row from the actor graph, the baselines on the graph it solved.

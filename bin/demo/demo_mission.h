@@ -10,10 +10,10 @@ namespace certislam::bin {
 
 /// Command-line options of `certislam demo`.
 struct DemoOptions {
-    std::string scenario = "city";     ///< slam::ScenarioNames()
+    std::string scenario = "tunnel-rendezvous";  ///< slam::ScenarioNames()
     int robots = 0;                    ///< robots in the simulated mission (0: the scenario's)
     std::string out_dir = "out/demo";  ///< where the files go ("" writes none)
-    std::uint64_t seed = 1;            ///< simulator seed
+    std::uint64_t seed = 0;            ///< simulator seed (0: slam::ScenarioDefaultSeed)
     int max_keyframes = 0;             ///< keyframes per robot at most (0: the whole route)
     bool sequential = true;            ///< robot r starts when robot r-1 has finished
     bool actors = true;  ///< certified row from the actor graph (false: the pipeline directly)

@@ -28,15 +28,17 @@ void City(SimScenario* s) {
         "LiDAR-inertial drift; odometry slips 5 % in the tunnel";
 }
 
-/// Robot 0 enters a 150 m featureless tunnel from the city, robot 1 starts inside it (a
+/// Robot 0 drives from the city through a 120 m featureless tunnel, robot 1 starts inside it (a
 /// SubT-style deployment) and follows the same way out: their first common places are the tunnel,
-/// where registration is degenerate along the axis; later they meet at structured crossings.
+/// where registration is degenerate along the axis; later they meet on structured streets.
 /// LiDAR-inertial drift is strong (yaw-rate and vertical-velocity bias random walks) and the
 /// odometry misses 8 % of the motion along the tunnel (scale error).
 void TunnelRendezvous(SimScenario* s) {
     SimulatorConfig& c = s->config;
-    c.world.tunnel_length_m = 150.0;
+    c.world.blocks_x = 2;
+    c.world.tunnel_length_m = 120.0;
     c.world.tunnel_walkway_m = 1.2;  // a real tunnel is not symmetric under a half turn
+    c.keyframe_spacing_m = 4.0;
     c.tunnel_slip = 0.08;
     c.drift.yaw_rate_bias_sigma_rad_s = 1.5e-3;
     c.drift.yaw_rate_bias_walk_rad_s_sqrt_s = 1.5e-4;
@@ -45,29 +47,22 @@ void TunnelRendezvous(SimScenario* s) {
     c.drift.scale_error_sigma = 1e-2;
     const SimStreets st = Layout(c.world);
     const double p = st.block_pitch_m;
-    const double east = st.blocks_x * p;
     const double north = st.blocks_y * p;
     // Robot 0 sets off westward, robot 1 eastward: their odometry frames differ by a half turn.
     c.routes = {
-        {{p, north},
+        {{p, p}, {0, p}, {0, 0}, {st.east_loop_x, 0}, {st.east_loop_x, north}, {p, north}, {p, p}},
+        {{st.tunnel_x_begin + 20.0, 0},
+         {st.east_loop_x, 0},
+         {st.east_loop_x, north},
          {0, north},
          {0, 0},
-         {st.east_loop_x, 0},
-         {st.east_loop_x, north},
-         {east, north},
-         {east, 0}},
-        {{st.tunnel_x_begin + 30.0, 0},
-         {st.east_loop_x, 0},
-         {st.east_loop_x, north},
-         {p, north},
-         {p, 0},
-         {east, 0}},
+         {p, 0}},
     };
     s->description =
-        "robot 0 sets off west and drives from the city through a 150 m featureless tunnel; "
+        "robot 0 sets off west and drives from the city through a 120 m featureless tunnel; "
         "robot 1 starts inside the tunnel and drives out east (their odometry frames half a "
         "turn apart), so the robots first share places in the tunnel "
-        "(registration degenerate along its axis), later at structured crossings; strong "
+        "(registration degenerate along its axis), later on structured streets; strong "
         "LiDAR-inertial drift (yaw-rate and vertical-velocity bias random walks), odometry "
         "misses 8 % of the motion in the tunnel";
 }
@@ -143,9 +138,15 @@ void Sequential(SimulatorConfig* config) {
 }  // namespace
 
 const std::vector<std::string>& ScenarioNames() {
-    static const std::vector<std::string> names{"city", "tunnel-rendezvous", "large-drift",
+    static const std::vector<std::string> names{"tunnel-rendezvous", "city", "large-drift",
                                                 "swarm"};
     return names;
+}
+
+std::uint64_t ScenarioDefaultSeed(const std::string& name) {
+    // Seed 3 draws drift under which LM from odometry stops at a critical point (the
+    // certificate's refusal is the demo's point); with seed 1 it stops short of one.
+    return name == "tunnel-rendezvous" ? 3 : 1;
 }
 
 int ScenarioDefaultRobots(const std::string& name) {

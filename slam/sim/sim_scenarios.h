@@ -18,11 +18,15 @@ struct SimScenario {
     SimulatorConfig config;   ///< everything the simulator needs (seed, robots, routes, drift)
 };
 
-/// The scenarios, default first: "city", "tunnel-rendezvous", "large-drift", "swarm".
+/// The scenarios, default first: "tunnel-rendezvous", "city", "large-drift", "swarm".
 const std::vector<std::string>& ScenarioNames();
 
 /// Robots a scenario has when none are asked for (2, or 8 for "swarm"); 0 for unknown names.
 int ScenarioDefaultRobots(const std::string& name);
+
+/// The seed a scenario is shown with when none is asked for: the mission its description and
+/// the demo's Table I speak of (3 for "tunnel-rendezvous", 1 for the others).
+std::uint64_t ScenarioDefaultSeed(const std::string& name);
 
 /// The scenario `name` with `robots` robots (0: its default) and `seed`; robots beyond its
 /// hand-made routes take seeded random walks. `sequential`: robot r starts when robot r-1 has

@@ -393,6 +393,29 @@ TEST(Certificate, ALooseBoundAtASmallCostIsNotCertified) {
     EXPECT_STREQ(VerdictName(result.status), "inconclusive");
 }
 
+TEST(Certificate, AnEtaBetweenTheLaddersRungsCertifies) {
+    // eta = 1e-7 ||Q|| = 0.1; S + e D factorizes from e = 5e-7 on. The rung 1e-7 fails, 1e-6
+    // passes but bounds f - f* by 1e-6 d n = 3e-4, 1.2e-6 of f; 7.5e-7 (0.9 of the allowance)
+    // factorizes and bounds it by 9e-7 of f.
+    CertificateQuantities q;
+    q.d = 3;
+    q.n = 100;
+    q.objective = 250.0;
+    q.dual_value = 250.0;
+    q.q_norm = 1e6;
+    q.x_norm = 1.0;
+    q.objective_noise = 1e-20;
+    CertificateConfig config;
+    CertificateResult result;
+    ASSERT_TRUE(FirstOrderVerdict(q, config, &result));
+    SecondOrderVerdict(
+        q, -1e-8, config, [](double e) { return e >= 5e-7; }, &result);
+    ASSERT_TRUE(result.has_bound);
+    EXPECT_NEAR(result.bound_eta, 7.5e-7, 1e-12);
+    EXPECT_LE(result.relative_suboptimality_bound, config.max_relative_bound);
+    EXPECT_STREQ(VerdictName(result.status), "certified");
+}
+
 TEST(CertificateConfig, RejectsBadValuesNamingTheField) {
     CertificateConfig config;
     config.eta_relative = -1.0;

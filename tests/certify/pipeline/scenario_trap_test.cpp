@@ -20,7 +20,7 @@ constexpr double kTrappedAbove = 10.0;      // LM from odometry stops above this
 constexpr double kCostRelTolerance = 1e-6;  // LM from the alignment vs f* (relative)
 
 MissionResult RunScenario(const std::string& name) {
-    const auto scenario = slam::MakeScenario(name, 0, 1);
+    const auto scenario = slam::MakeScenario(name, 0, slam::ScenarioDefaultSeed(name));
     const slam::MissionGenerator generator(scenario->config);
     std::vector<std::vector<slam::Keyframe>> robots(generator.num_robots());
     std::vector<std::vector<Eigen::Isometry3d>> truth(generator.num_robots());

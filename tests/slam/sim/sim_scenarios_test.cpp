@@ -26,8 +26,10 @@ TEST(SimScenarios, EveryNameBuildsItsDefaultTeam) {
             EXPECT_GT(generator.num_keyframes(r), 20) << name << " robot " << r;
         }
     }
-    EXPECT_EQ(ScenarioNames().front(), "city");
+    EXPECT_EQ(ScenarioNames().front(), "tunnel-rendezvous");
     EXPECT_EQ(ScenarioDefaultRobots("swarm"), 8);
+    EXPECT_NE(ScenarioDefaultSeed("tunnel-rendezvous"), 0u);
+    EXPECT_EQ(ScenarioDefaultSeed("city"), 1u);
 }
 
 TEST(SimScenarios, UnknownNameGivesNothing) {

@@ -33,8 +33,8 @@ struct RobotNodeConfig {
         c.rounds.rel_grad_tol = 1e-9;
         return c;
     }();
-    CertifierConfig certifier;             ///< certificate
-    MapperConfig mapper;                   ///< TSDF submaps
+    CertifierConfig certifier;  ///< certificate
+    MapperConfig mapper;        ///< TSDF submaps
     bool mapping = true;  ///< run the mapper (when the wiring has map addresses for every robot)
     std::chrono::milliseconds quiet{1500};  ///< done: certified and no change for this long
 

@@ -132,7 +132,8 @@ bool SolverActor::OnLoop(const transport::Message& m, bool replayed) {
     }
     const auto loop = FromProto(*proto);
     if (!loop) return false;
-    if (loop->inter_robot()) loops_heard_[int(proto->header().robot_id())].insert({loop->a, loop->b});
+    if (loop->inter_robot())
+        loops_heard_[int(proto->header().robot_id())].insert({loop->a, loop->b});
     if (!NewVerdict({loop->a, loop->b}, version, true)) return true;
     if (state_.AddLoop(*loop)) {
         Changed();

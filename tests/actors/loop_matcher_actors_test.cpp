@@ -44,6 +44,29 @@ bool WaitFor(Pred pred, std::chrono::milliseconds timeout) {
     return true;
 }
 
+// A subscriber that joins after robot 1's matcher sent its loops (a restarted robot's solver) gets
+// every accepted loop again, and an end marker that counts the inter-robot ones.
+void ExpectALateSubscriberHearsEveryLoop(zmq::context_t& context, const std::vector<int>& robots,
+                                         const LoopMatcherActor& matcher, int accepted_inter) {
+    transport::Endpoint late(context, ClientConfig(InprocWiring(0, robots), Edge::kLoops, 1));
+    std::set<std::pair<slam::PoseId, slam::PoseId>> resent;
+    std::optional<std::uint64_t> counted;
+    const auto late_deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while ((!counted || resent.size() < static_cast<size_t>(matcher.LoopsFound())) &&
+           std::chrono::steady_clock::now() < late_deadline) {
+        while (auto m = late.Receive(std::chrono::milliseconds(10))) {
+            if (auto proto = transport::Unpack<v1::LoopClosure>(*m)) {
+                if (auto loop = FromProto(*proto)) resent.insert({loop->a, loop->b});
+            } else if (auto end = transport::Unpack<v1::Shutdown>(*m)) {
+                if (end->reason() == kEndOfLoops) counted = end->count();
+            }
+        }
+    }
+    EXPECT_EQ(static_cast<int>(resent.size()), matcher.LoopsFound());
+    ASSERT_TRUE(counted.has_value()) << "no end of loops after the late subscriber joined";
+    EXPECT_EQ(static_cast<int>(*counted), accepted_inter);
+}
+
 // Incremental PCM may send an aliased loop while it is the largest consistent set it has (the
 // order registrations finish in depends on load), but must withdraw it once the true loops
 // outvote it: no false loop stays with the solvers.
@@ -114,36 +137,17 @@ TEST(LoopMatcherActors, AliasedKeyframesMakeFalseLoopsThatDoNotStayWithTheSolver
     EXPECT_GE(inter, 2);
     // Registration accepted some aliased pairs: PCM, not registration, kept them out.
     EXPECT_GT(matchers[1]->Verified(), matchers[1]->LoopsFound());
-    const int withdrawals = static_cast<int>(withdrawn.size());
+    const auto withdrawals = static_cast<int>(withdrawn.size());
     EXPECT_EQ(withdrawals, matchers[1]->Withdrawn());
     EXPECT_EQ(matchers[1]->LoopsFound(), static_cast<int>(sent.size()) - withdrawals);
-    // Both solvers end up with exactly the matcher's accepted inter-robot loops.
-    const int accepted_inter = inter - withdrawals;
+    const int accepted_inter = inter - withdrawals;  // every solver ends with exactly these
     for (auto* s : solvers) {
         EXPECT_TRUE(WaitFor([&] { return s->Snapshot().inter_robot_loops == accepted_inter; },
                             std::chrono::seconds(5)))
             << "solver has " << s->Snapshot().inter_robot_loops << ", matcher accepted "
             << accepted_inter;
     }
-    // A subscriber that joins after the loops went out (a restarted robot's solver) gets every
-    // accepted loop again, and an end marker that counts the inter-robot ones.
-    transport::Endpoint late(context, ClientConfig(InprocWiring(0, robots), Edge::kLoops, 1));
-    std::set<std::pair<slam::PoseId, slam::PoseId>> resent;
-    std::optional<std::uint64_t> counted;
-    const auto late_deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    while ((!counted || resent.size() < static_cast<size_t>(matchers[1]->LoopsFound())) &&
-           std::chrono::steady_clock::now() < late_deadline) {
-        while (auto m = late.Receive(std::chrono::milliseconds(10))) {
-            if (auto proto = transport::Unpack<v1::LoopClosure>(*m)) {
-                if (auto loop = FromProto(*proto)) resent.insert({loop->a, loop->b});
-            } else if (auto end = transport::Unpack<v1::Shutdown>(*m)) {
-                if (end->reason() == kEndOfLoops) counted = end->count();
-            }
-        }
-    }
-    EXPECT_EQ(static_cast<int>(resent.size()), matchers[1]->LoopsFound());
-    ASSERT_TRUE(counted.has_value()) << "no end of loops after the late subscriber joined";
-    EXPECT_EQ(static_cast<int>(*counted), accepted_inter);
+    ExpectALateSubscriberHearsEveryLoop(context, robots, *matchers[1], accepted_inter);
     for (auto& a : actors) EXPECT_EQ(a->Counters().dropped_malformed, 0u) << a->Name();
     for (auto& a : actors) a->Stop();
 }

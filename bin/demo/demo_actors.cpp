@@ -23,6 +23,7 @@ actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate)
     if (config.mapping) config.mapper.map.tsdf.voxel_size_m = voxel_m;
     config.solver.solver.rank = 5;
     config.solver.solver.rbcd.rel_grad_tol = 1e-9;
+    config.solver.synchronous = true;  // rounds once the graph is final (no robot restarts here)
     // The certifiers run the distributed check (every robot its rows of S; the default), the
     // anchor's centralised check only as the fallback of a silent round; false: the anchor's
     // centralised check alone (`certislam demo --certificate centralised`).

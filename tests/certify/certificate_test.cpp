@@ -372,17 +372,25 @@ TEST(Objective, OneCentimetreOffATreeCostsItsClosedFormAndEveryEdgesSum) {
     EXPECT_NEAR(a.value + b.value, f.value, 1e-12 * expected);
 }
 
+/// The quantities of a 3D problem of n poses with f(X), tr(Lambda), ||Q|| and ||X|| (no rounding
+/// noise to speak of).
+CertificateQuantities Quantities3D(int n, double objective, double dual_value, double q_norm,
+                                   double x_norm) {
+    CertificateQuantities q;
+    q.d = 3;
+    q.n = n;
+    q.objective = objective;
+    q.dual_value = dual_value;
+    q.q_norm = q_norm;
+    q.x_norm = x_norm;
+    q.objective_noise = 1e-20;
+    return q;
+}
+
 TEST(Certificate, ALooseBoundAtASmallCostIsNotCertified) {
     // f(X) = 0.237 with tr(Lambda) = 0.2 and ||Q|| ||X||^2 1e-12 = 0.25: the old norm-product
     // floor called this "certified within rounding noise"; its proven bound is 16 % of f.
-    CertificateQuantities q;
-    q.d = 3;
-    q.n = 40;
-    q.objective = 0.237;
-    q.dual_value = 0.2;
-    q.q_norm = 1e4;
-    q.x_norm = 5e3;
-    q.objective_noise = 1e-20;
+    const CertificateQuantities q = Quantities3D(40, 0.237, 0.2, 1e4, 5e3);
     CertificateConfig config;
     CertificateResult result;
     ASSERT_TRUE(FirstOrderVerdict(q, config, &result));
@@ -397,14 +405,7 @@ TEST(Certificate, AnEtaBetweenTheLaddersRungsCertifies) {
     // eta = 1e-7 ||Q|| = 0.1; S + e D factorizes from e = 5e-7 on. The rung 1e-7 fails, 1e-6
     // passes but bounds f - f* by 1e-6 d n = 3e-4, 1.2e-6 of f; 7.5e-7 (0.9 of the allowance)
     // factorizes and bounds it by 9e-7 of f.
-    CertificateQuantities q;
-    q.d = 3;
-    q.n = 100;
-    q.objective = 250.0;
-    q.dual_value = 250.0;
-    q.q_norm = 1e6;
-    q.x_norm = 1.0;
-    q.objective_noise = 1e-20;
+    const CertificateQuantities q = Quantities3D(100, 250.0, 250.0, 1e6, 1.0);
     CertificateConfig config;
     CertificateResult result;
     ASSERT_TRUE(FirstOrderVerdict(q, config, &result));

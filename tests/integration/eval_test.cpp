@@ -8,6 +8,7 @@
 #include <string>
 
 #include "tests/integration/shell.h"
+#include "tests/scratch_dir.h"
 
 namespace {
 
@@ -17,7 +18,7 @@ using certislam::testing::Shell;
 using certislam::testing::ShellResult;
 
 std::filesystem::path TempDir() {
-    const auto dir = std::filesystem::temp_directory_path() / "certislam_eval_test";
+    const auto dir = certislam::testing::ScratchDir();
     std::filesystem::create_directories(dir);
     return dir;
 }

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "tests/integration/shell.h"
+#include "tests/scratch_dir.h"
 
 namespace {
 
@@ -20,7 +21,7 @@ using certislam::testing::ShellResult;
 constexpr double kTinyGridFStar = 18.5193868731;  ///< data/g2o/README.md
 
 std::string Write(const std::string& name, const std::string& text) {
-    const auto dir = std::filesystem::temp_directory_path() / "certislam_hostile_cli";
+    const auto dir = certislam::testing::ScratchDir();
     std::filesystem::create_directories(dir);
     const std::string path = (dir / name).string();
     std::ofstream(path, std::ios::binary) << text;

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "tests/integration/shell.h"
+#include "tests/scratch_dir.h"
 
 namespace {
 
@@ -63,7 +64,7 @@ TEST(RegisterCommand, KittiSamePlaceTextOutputHasEveryField) {
 }
 
 TEST(RegisterCommand, TruncatedFileIsAnErrorNamingIt) {
-    const auto dir = std::filesystem::temp_directory_path() / "certislam_register_test";
+    const auto dir = certislam::testing::ScratchDir();
     std::filesystem::create_directories(dir);
     const auto bad = (dir / "truncated.pcd").string();
     {

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "tests/integration/shell.h"
+#include "tests/scratch_dir.h"
 
 namespace {
 
@@ -25,7 +26,7 @@ std::string Data(const std::string& name) {
 }
 
 std::string Write(const std::string& name, const std::string& text) {
-    const auto dir = std::filesystem::temp_directory_path() / "certislam_solve_distributed_test";
+    const auto dir = certislam::testing::ScratchDir();
     std::filesystem::create_directories(dir);
     const auto path = (dir / name).string();
     std::ofstream(path) << text;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "tests/integration/shell.h"
+#include "tests/scratch_dir.h"
 
 namespace certislam {
 namespace {
@@ -18,7 +19,7 @@ using testing::Shell;
 constexpr double kSamePose = 1e-6;  ///< printed poses of the same pose
 
 std::string TempPath(const std::string& name) {
-    const auto dir = std::filesystem::temp_directory_path() / "certislam_solve_output_test";
+    const auto dir = certislam::testing::ScratchDir();
     std::filesystem::create_directories(dir);
     return (dir / name).string();
 }

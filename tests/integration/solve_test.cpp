@@ -8,6 +8,7 @@
 #include <string>
 
 #include "tests/integration/shell.h"
+#include "tests/scratch_dir.h"
 
 namespace {
 
@@ -18,7 +19,7 @@ constexpr double kTinyGridFStar = 18.5193868731;  ///< data/g2o/README.md
 constexpr double kRelGap = 1e-6;
 
 std::string TempPath(const std::string& name) {
-    const auto dir = std::filesystem::temp_directory_path() / "certislam_solve_test";
+    const auto dir = certislam::testing::ScratchDir();
     std::filesystem::create_directories(dir);
     return (dir / name).string();
 }

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "slam/backend/connection_laplacian.h"
+#include "tests/scratch_dir.h"
 
 namespace certislam::slam {
 namespace {
@@ -21,7 +22,7 @@ std::string DataFile(const std::string& name) {
 }
 
 std::string WriteTemp(const std::string& name, const std::string& text) {
-    const auto dir = std::filesystem::temp_directory_path() / "certislam_g2o_io_test";
+    const auto dir = certislam::testing::ScratchDir();
     std::filesystem::create_directories(dir);
     const std::string path = (dir / name).string();
     std::ofstream(path) << text;
@@ -35,7 +36,7 @@ struct FileCase {
     int m;
 };
 
-class RealFile : public testing::TestWithParam<FileCase> {};
+class RealFile : public ::testing::TestWithParam<FileCase> {};
 
 TEST_P(RealFile, PosesAndEdgesAsTheReadmeCounts) {
     const FileCase c = GetParam();
@@ -52,7 +53,7 @@ TEST_P(RealFile, PosesAndEdgesAsTheReadmeCounts) {
 
 INSTANTIATE_TEST_SUITE_P(
     Readme, RealFile,
-    testing::Values(
+    ::testing::Values(
         FileCase{"tinyGrid3D.g2o", 3, 9, 11}, FileCase{"smallGrid3D.g2o", 3, 125, 297},
         FileCase{"sphere2500.g2o", 3, 2500, 4949}, FileCase{"torus3D.g2o", 3, 5000, 9048},
         FileCase{"parking-garage.g2o", 3, 1661, 6275}, FileCase{"cubicle.g2o", 3, 5750, 16869},
@@ -63,7 +64,7 @@ INSTANTIATE_TEST_SUITE_P(
         FileCase{"kitti_07.g2o", 2, 1101, 1106}, FileCase{"kitti_08.g2o", 2, 4071, 4070},
         FileCase{"kitti_09.g2o", 2, 1591, 1592}, FileCase{"variants/dpgo/CSAIL.g2o", 2, 1045, 1171},
         FileCase{"variants/dpgo/kitti_00.g2o", 2, 4541, 4676}),
-    [](const testing::TestParamInfo<FileCase>& info) {
+    [](const ::testing::TestParamInfo<FileCase>& info) {
         std::string s = info.param.file;
         std::replace_if(
             s.begin(), s.end(), [](char ch) { return !std::isalnum(ch); }, '_');
@@ -139,7 +140,7 @@ struct BadCase {
     const char* reason;  ///< expected words of the reason
 };
 
-class Rejects : public testing::TestWithParam<BadCase> {};
+class Rejects : public ::testing::TestWithParam<BadCase> {};
 
 TEST_P(Rejects, WithFileLineAndReason) {
     const BadCase c = GetParam();
@@ -152,7 +153,7 @@ TEST_P(Rejects, WithFileLineAndReason) {
 
 INSTANTIATE_TEST_SUITE_P(
     Malformed, Rejects,
-    testing::Values(
+    ::testing::Values(
         BadCase{"unknown", "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nEDGE_FOO 1 2\n", ":2:", "unknown"},
         BadCase{"short", "\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0\n", ":2:", "too few"},
         BadCase{"nan", "EDGE_SE2 0 1 nan 0 0 1 0 0 1 0 1\n", ":1:", "non-finite"},
@@ -164,7 +165,7 @@ INSTANTIATE_TEST_SUITE_P(
                 "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nEDGE_SE3:QUAT 1 2 0 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 "
                 "0 0 1 0 0 0 1 0 0 1 0 1\n",
                 ":2:", "mixes"}),
-    [](const testing::TestParamInfo<BadCase>& info) { return std::string(info.param.name); });
+    [](const ::testing::TestParamInfo<BadCase>& info) { return std::string(info.param.name); });
 
 TEST(G2oRejects, DisconnectedGraph) {
     const std::string path = WriteTemp("split.g2o",

@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include "tests/scratch_dir.h"
 
 namespace certislam::slam {
 namespace {
@@ -16,7 +17,7 @@ const std::string kKaist = kLidar + "mulran_kaist03_keyframes";
 const std::string kKitti = kLidar + "kitti00_scancontext_samples";
 
 fs::path Scratch(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() / "certislam_keyframe_sources_test" / name;
+    const fs::path dir = certislam::testing::ScratchDir() / name;
     fs::remove_all(dir);
     fs::create_directories(dir);
     return dir;

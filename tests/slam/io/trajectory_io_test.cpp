@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include "tests/scratch_dir.h"
 
 namespace certislam::slam {
 namespace {
@@ -12,7 +13,7 @@ namespace {
 constexpr double kRoundTrip = 1e-12;  ///< %.17g round trip of doubles
 
 std::string TempPath(const std::string& name) {
-    const auto dir = std::filesystem::temp_directory_path() / "certislam_trajectory_io_test";
+    const auto dir = certislam::testing::ScratchDir();
     std::filesystem::create_directories(dir);
     return (dir / name).string();
 }

@@ -14,6 +14,7 @@
 #include <random>
 
 #include "slam/io/keyframe_sources_io.h"
+#include "tests/scratch_dir.h"
 
 namespace certislam::slam {
 namespace {
@@ -28,7 +29,7 @@ constexpr float kOdomFrameTolM = 2e-4f;  // float32 round trip through the odom 
 const std::string kKaist = std::string(CERTISLAM_DATA_DIR) + "/lidar/mulran_kaist03_keyframes";
 
 fs::path Scratch(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() / "certislam_rosbag_test";
+    const fs::path dir = certislam::testing::ScratchDir();
     fs::create_directories(dir);
     fs::remove(dir / name);
     return dir / name;

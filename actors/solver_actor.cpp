@@ -1,6 +1,7 @@
 // Solver actor: messages in -> SolverState; ticks -> block updates -> public poses out.
 #include "actors/solver_actor.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "actors/convert.h"
@@ -43,9 +44,11 @@ void SolverActor::OnStart() {
 
 void SolverActor::Subscribe() {
     OpenClient(Edge::kKeyframes, RobotId());
+    // Reports and saddle escapes come from the anchor's certifier (the lowest id); the others'
+    // streams carry only their rounds' vectors and sums.
+    OpenClient(Edge::kCertify, *std::min_element(Wiring().robots.begin(), Wiring().robots.end()));
     for (int r : Wiring().robots) {
         OpenClient(Edge::kLoops, r);
-        OpenClient(Edge::kCertify, r);
         if (r != RobotId()) OpenClient(Edge::kPoses, r);
     }
     On(v1::Keyframe::descriptor()->full_name(), [this](const transport::Message& m) {
@@ -301,8 +304,14 @@ void SolverActor::SendBundle() {
     last_bundle_ = std::chrono::steady_clock::now();
 }
 
+SolverActor::SnapshotKey SolverActor::KeyOfSnapshot() const {
+    return {steps_,           rounds_swept_, rounds_converged_,       rounds_gave_up_, local_ok_,
+            publish_pending_, IsFinal(),     state_.StaircaseLevel(), grad_norm_,      changed_};
+}
+
 void SolverActor::UpdateSnapshot() {
     MaybeCheckpoint();
+    snapshot_key_ = KeyOfSnapshot();
     SolverSnapshot s;
     s.num_poses = state_.NumPoses();
     s.final = keyframes_ended_;

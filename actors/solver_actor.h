@@ -116,6 +116,10 @@ class SolverActor final : public NodeActor {
     void SendBundle();
     void Publish();
     void UpdateSnapshot();
+    /// What a snapshot shows that a tick can change (the rest changes with the graph, `changed_`).
+    using SnapshotKey = std::tuple<std::uint64_t, std::uint64_t, bool, bool, bool, bool, bool, int,
+                                   double, std::chrono::steady_clock::time_point>;
+    SnapshotKey KeyOfSnapshot() const;
     void Changed();
     void Replay();           ///< durable log: loops, and the last checkpoint kept for later
     void MaybeCheckpoint();  ///< a certified final state not logged yet: logged
@@ -167,6 +171,7 @@ class SolverActor final : public NodeActor {
     std::chrono::steady_clock::time_point restore_checked_{};  ///< changed_ at the last check
     mutable std::mutex snapshot_mutex_;
     SolverSnapshot snapshot_;
+    SnapshotKey snapshot_key_{};  ///< KeyOfSnapshot() when snapshot_ was taken
 };
 
 }  // namespace certislam::actors

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,13 @@ double Cost(InMemoryTeam* team) {
     double f = 0.0;
     for (auto& me : team->robots) f += me.Evaluate().cost;
     return f;
+}
+
+// The team's Riemannian gradient norm at the rounds' last iterate (from the block gradients).
+double GradientNorm(InMemoryTeam* team) {
+    double sq = 0.0;
+    for (auto& me : team->robots) sq += std::pow(me.Evaluate().grad_norm, 2);
+    return std::sqrt(sq);
 }
 
 std::vector<slam::RobotGraph> SmallGrid(int robots) {
@@ -56,10 +64,36 @@ TEST(TeamRounds, AccelerationNeedsFewerRoundsThanPlainSweeps) {
     EXPECT_EQ(plain.restarts.front(), 0);
 }
 
+TEST(TeamRounds, RefinementGoesBelowTheFirstOrderToleranceForAtMostItsRounds) {
+    constexpr int kBudget = 5;
+    TeamRoundsConfig none, unreachable, config;
+    none.refine_rounds = 0;
+    unreachable.refine_rel_grad_tol = 1e-30;
+    unreachable.refine_rounds = kBudget;
+    InMemoryTeam first_order = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, none);
+    InMemoryTeam capped = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, unreachable);
+    InMemoryTeam refined = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, config);
+    for (const auto* team : {&first_order, &capped, &refined}) EXPECT_TRUE(team->AllConverged());
+    const double f = Cost(&refined);
+    EXPECT_LE(GradientNorm(&first_order), none.rel_grad_tol * f);
+    EXPECT_GT(GradientNorm(&first_order), config.refine_rel_grad_tol * f);
+    EXPECT_EQ(capped.rounds.front(), first_order.rounds.front() + kBudget);
+    EXPECT_LE(GradientNorm(&refined), config.refine_rel_grad_tol * f);
+    EXPECT_GT(refined.rounds.front(), first_order.rounds.front());
+    EXPECT_LE(refined.rounds.front(),
+              first_order.rounds.front() + static_cast<std::uint64_t>(config.refine_rounds));
+}
+
 TEST(TeamRounds, RefusesABadConfiguration) {
     TeamRoundsConfig bad;
     bad.max_rounds = 0;
     EXPECT_THROW(TeamRounds(0, {0, 1}, {1}, bad), std::invalid_argument);
+    TeamRoundsConfig loose_refinement;
+    loose_refinement.refine_rel_grad_tol = 2.0 * loose_refinement.rel_grad_tol;
+    EXPECT_THROW(TeamRounds(0, {0, 1}, {1}, loose_refinement), std::invalid_argument);
+    TeamRoundsConfig negative_budget;
+    negative_budget.refine_rounds = -1;
+    EXPECT_THROW(TeamRounds(0, {0, 1}, {1}, negative_budget), std::invalid_argument);
 }
 
 }  // namespace

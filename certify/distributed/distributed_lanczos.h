@@ -83,7 +83,6 @@ class LanczosParticipant : public RoundParticipant {
   private:
     enum class Phase { kSetup, kProduct, kPass1, kPass2 };
     void Advance();
-    bool Reduced(int step, int stage, std::vector<double>* sums, bool max_of_third = false);
     bool Product();
     void SendVector(int step, const Eigen::VectorXd& u);
     void Share(int step, int stage, const std::vector<double>& values);
@@ -108,10 +107,7 @@ class LanczosParticipant : public RoundParticipant {
     double pending_b_ = 1.0;         ///< and its norm
     /// robot -> its public entries of every finished Lanczos vector (to finish the next one)
     std::map<int, std::vector<Eigen::VectorXd>> neighbor_basis_;
-    /// step -> robot -> (ids, values)
-    std::map<int, std::map<int, std::pair<std::vector<slam::PoseId>, Eigen::VectorXd>>> vectors_;
-    /// (step, stage) -> robot -> partial sums
-    std::map<std::pair<int, int>, std::map<int, std::vector<double>>> partials_;
+    RoundMailbox mailbox_;
 };
 
 /// Message counts of a round run in memory.

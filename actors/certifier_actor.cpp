@@ -367,6 +367,7 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
     };
     lanczos_ = certify::MakeRoundParticipant(std::move(problem), Wiring().robots, round_,
                                              config_.lanczos, send_vector, send_reduction);
+    round_began_ = std::chrono::steady_clock::now();
     lanczos_->Begin();
     auto early = std::move(early_[round_]);
     early_.clear();
@@ -422,6 +423,9 @@ void CertifierActor::RoundFinished() {
         std::lock_guard lock(verdict_mutex_);
         if (verdict_ && verdict_->round == verdict.round) return;  // already counted
     }
+    round_us_ += static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                                std::chrono::steady_clock::now() - round_began_)
+                                                .count());
     // The anchor decides: the round's sums and lambda_min by the central rule, with the PSD test
     // of S + e D of the round's graph (the bundles the round named: one X, one edge set).
     slam::PoseGraph graph;

@@ -56,6 +56,8 @@ TEST(SolveDistributed, TwoAndFiveRobotsCertifyTheInProcessOptimumAndSayWhichPath
         EXPECT_GT(team["iterations"].get<int>(), 0);
         EXPECT_GE(team["certificate_rounds"].get<int>(), 1);
         EXPECT_GT(team["lanczos_steps"].get<int>(), 0);
+        EXPECT_GT(team["certificate_seconds"].get<double>(), 0.0);
+        EXPECT_LE(team["certificate_seconds"].get<double>(), team["seconds"].get<double>());
         EXPECT_GT(team["seconds"].get<double>(), 0.0);
         const auto& bytes = team["bytes_between_robots"];
         std::uint64_t sum = 0;

@@ -33,7 +33,7 @@ struct SolveOptions {
     bool quiet = false;
     bool distributed = false;
     std::string transport = "inproc";
-    std::string eigensolver = "lanczos";
+    std::string eigensolver;  ///< empty: DistributedSolveOptions' default
     double timeout_s = 600.0;
     double max_relative_bound = certify::CertificateConfig{}.max_relative_bound;
 };
@@ -159,8 +159,8 @@ void AddOptions(CLI::App& app, SolveOptions& o) {
                    "process per robot on this host)")
         ->check(CLI::IsMember({"inproc", "ipc", "tcp"}));
     app.add_option("--eigensolver", o.eigensolver,
-                   "--distributed: the certificate's eigen-solver, lanczos or lobpcg (block-Jacobi "
-                   "preconditioned; certifier.eigensolver)")
+                   "--distributed: the certificate's eigen-solver, lobpcg (block-Jacobi "
+                   "preconditioned; the default) or lanczos (certifier.eigensolver)")
         ->check(CLI::IsMember({"lanczos", "lobpcg"}));
     app.add_option("--timeout", o.timeout_s, "--distributed: give up after this many seconds")
         ->check(CLI::PositiveNumber);
@@ -179,7 +179,7 @@ int CheckOptionCombinations(const SolveOptions& o) {
                      "--rank or --out\n");
         return kExitUsage;
     }
-    if (!o.distributed && o.eigensolver != "lanczos") {
+    if (!o.distributed && !o.eigensolver.empty()) {
         std::fprintf(stderr, "certislam solve: error: --eigensolver needs --distributed\n");
         return kExitUsage;
     }
@@ -215,7 +215,7 @@ int RunSolve(int argc, char** argv) {
         d.json = o.json;
         d.max_relative_bound = o.max_relative_bound;
         d.transport = o.transport;
-        d.eigensolver = o.eigensolver;
+        if (!o.eigensolver.empty()) d.eigensolver = o.eigensolver;
         return RunDistributedSolve(graph, d);
     }
     certify::PoseGraphSolverConfig config;

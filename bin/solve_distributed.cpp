@@ -132,8 +132,9 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
     actors::PoseGraphNodeConfig config;
     config.quiet = std::chrono::milliseconds(std::llround(o.quiet_s * 1000.0));
     config.certifier.certificate.max_relative_bound = o.max_relative_bound;
-    if (o.eigensolver == "lobpcg")
-        config.certifier.lanczos.method = certify::LanczosSettings::Method::kLobpcg;
+    config.certifier.lanczos.method = o.eigensolver == "lanczos"
+                                          ? certify::LanczosSettings::Method::kLanczos
+                                          : certify::LanczosSettings::Method::kLobpcg;
     const actors::PoseGraphTeamResult result =
         actors::RunPoseGraphTeam(graphs, config, std::chrono::duration<double>(o.timeout_s));
     nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));

@@ -17,10 +17,10 @@ struct DistributedSolveOptions {
     int robots = -1;         ///< contiguous robots; -1: the graph's own robots (`graph.ids`)
     double timeout_s = 600;  ///< give up (not certified) after this long
     bool json = false;       ///< one JSON object on stdout
-    double max_relative_bound = 1e-6;     ///< certified needs a relative bound at most this
-    double quiet_s = 0.3;                 ///< done: certified and unchanged this long
-    std::string transport = "inproc";     ///< inproc (one process), ipc or tcp (robot processes)
-    std::string eigensolver = "lanczos";  ///< the certificate's: lanczos or lobpcg
+    double max_relative_bound = 1e-6;    ///< certified needs a relative bound at most this
+    double quiet_s = 0.3;                ///< done: certified and unchanged this long
+    std::string transport = "inproc";    ///< inproc (one process), ipc or tcp (robot processes)
+    std::string eigensolver = "lobpcg";  ///< the certificate's: lobpcg or lanczos
 };
 
 /// The report of a pose-graph team run (cost, verdict, team rounds, bytes between robots by

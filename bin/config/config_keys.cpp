@@ -186,7 +186,7 @@ std::vector<ConfigKey> SolverAndCertifierKeys() {
             "certifier.mode",
             [](TeamConfig & c, int) -> auto& { return c.node.certifier.distributed; },
             {{"distributed", true}, {"centralised", false}},
-            "certify with the distributed Lanczos, or centralised at the anchor"),
+            "certify with the distributed eigen-solver, or centralised at the anchor"),
         Choice<certify::LanczosSettings::Method>(
             "certifier.eigensolver",
             [](TeamConfig & c, int) -> auto& { return c.node.certifier.lanczos.method; },

@@ -9,7 +9,6 @@
 #include "certislam/v1/control.pb.h"
 
 namespace certislam::actors {
-
 void SolverActorConfig::Validate() const {
     solver.Validate();
     if (tick.count() <= 0 || heartbeat.count() <= 0 || bundle_period.count() <= 0) {
@@ -96,6 +95,16 @@ void SolverActor::Subscribe() {
         const auto report = transport::Unpack<v1::CertificateReport>(m);
         if (!report) return false;
         report_ = *report;
+        // S + eta D was PSD, but the bound was too loose for a verdict: the bound is first order
+        // in the gradient, so the asynchronous steps go on to the rounds' refined tolerance, and
+        // the moved blocks open a new check (the synchronous rounds refine by themselves).
+        const double refined =
+            std::min(1.0, config_.rounds.refine_rel_grad_tol / config_.solver.rbcd.rel_grad_tol);
+        if (report->verdict() == v1::CERTIFICATE_VERDICT_INCONCLUSIVE && report->has_bound() &&
+            tolerance_scale_ > refined) {
+            tolerance_scale_ = refined;
+            work_ = true;
+        }
         UpdateSnapshot();
         return true;
     });
@@ -183,6 +192,7 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
 }
 
 void SolverActor::Changed() {
+    tolerance_scale_ = 1.0;          // a new graph: the configured tolerance again
     if (restored_) report_.reset();  // the checkpoint's report is of the graph before this change
     restored_ = false;
     work_ = true;
@@ -206,7 +216,8 @@ void SolverActor::Tick() {
     if (!work_ || state_.NumPoses() == 0) return;
     double team_cost = 0.0;
     for (const auto& [robot, cost] : team_cost_) team_cost += robot == RobotId() ? 0.0 : cost;
-    const certify::SolverStepResult step = state_.Step(team_cost + team_cost_[RobotId()]);
+    const certify::SolverStepResult step =
+        state_.Step(team_cost + team_cost_[RobotId()], tolerance_scale_);
     ++steps_;
     team_cost_[RobotId()] = step.cost;
     grad_norm_ = step.grad_norm;

@@ -148,6 +148,9 @@ class SolverActor final : public NodeActor {
     std::chrono::steady_clock::time_point last_bundle_{};
     std::chrono::steady_clock::time_point last_publish_{};
     bool publish_pending_ = false;  ///< a step moved the block since the last publish
+    /// Multiplies the asynchronous steps' tolerance: rounds.refine_rel_grad_tol / rel_grad_tol
+    /// after an inconclusive report whose bound was too loose, back to 1 when the graph changes
+    double tolerance_scale_ = 1.0;
     std::optional<v1::CertificateReport> report_;
     std::chrono::steady_clock::time_point changed_ = std::chrono::steady_clock::now();
 

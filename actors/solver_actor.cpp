@@ -202,6 +202,13 @@ void SolverActor::Changed() {
 
 void SolverActor::Tick() {
     TryRestore();
+    // A certifier that began reading this robot's bundles (a round named it a neighbour) gets the
+    // last one now, not at the next heartbeat's re-send.
+    if (bundle_out_->subscribers() != bundle_readers_) {
+        const bool more = bundle_out_->subscribers() > bundle_readers_;
+        bundle_readers_ = bundle_out_->subscribers();
+        if (more && local_ok_) SendBundle();
+    }
     if (InRounds()) {
         SyncTick();
         return;

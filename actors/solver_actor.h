@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstddef>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -146,6 +147,7 @@ class SolverActor final : public NodeActor {
     std::uint64_t steps_ = 0;
     double grad_norm_ = 0.0;
     std::chrono::steady_clock::time_point last_bundle_{};
+    std::size_t bundle_readers_ = 0;  ///< subscribers of the bundle stream at the last tick
     std::chrono::steady_clock::time_point last_publish_{};
     bool publish_pending_ = false;  ///< a step moved the block since the last publish
     /// Multiplies the asynchronous steps' tolerance: rounds.refine_rel_grad_tol / rel_grad_tol

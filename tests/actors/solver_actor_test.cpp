@@ -151,6 +151,40 @@ TEST(SolverActor, InconclusiveBoundTightensTheAsynchronousTolerance) {
         << solvers[1]->Snapshot().grad_norm << " above " << tightened_tol;
 }
 
+// A certifier begins reading a neighbour's bundles when a round names it: the converged solver
+// sends its bundle to the new reader at once, not at the heartbeat's re-send (every second).
+TEST(SolverActor, ANewBundleReaderGetsTheBundleWithoutWaitingForTheResend) {
+    constexpr auto kPrompt = std::chrono::milliseconds(300);  // the re-send comes after >= 1 s
+    constexpr int kReaders = 3;  // one late reader could be lucky with the re-send's timing
+    const TwoRobotProblem problem = MakeTwoRobotProblem(20, 4, 3);
+    zmq::context_t context;
+    const std::vector<int> robots{0, 1};
+    std::vector<std::unique_ptr<SolverActor>> solvers;
+    for (int r : robots) {
+        solvers.push_back(
+            std::make_unique<SolverActor>(context, InprocWiring(r, robots), Config(problem)));
+        solvers.back()->Start();
+    }
+    Feeder feeder(context, robots, 2);
+    feeder.Feed(problem);
+    ASSERT_TRUE(WaitFor([&] {
+        const auto a = solvers[0]->Snapshot(), b = solvers[1]->Snapshot();
+        return a.final && b.final && a.local_ok && b.local_ok;
+    }));
+    for (int k = 0; k < kReaders; ++k) {
+        transport::Endpoint reader(context,
+                                   ClientConfig(InprocWiring(0, robots), Edge::kBundle, 1));
+        ASSERT_TRUE(reader.WaitReady(std::chrono::seconds(5)));
+        const auto subscribed = std::chrono::steady_clock::now();
+        bool block = false;
+        while (!block && std::chrono::steady_clock::now() - subscribed < kPrompt) {
+            const auto m = reader.Receive(std::chrono::milliseconds(10));
+            block = m && m->Is<v1::PublicPoses>();
+        }
+        EXPECT_TRUE(block) << "reader " << k << ": no bundle within " << kPrompt.count() << " ms";
+    }
+}
+
 TEST(SolverActor, SilentNeighbourDoesNotStopTheOthers) {
     // Robots 0 and 1 meet; robot 2 is configured but never starts. 0 and 1 still converge on
     // their blocks (never certified: robot 2's bundle never comes).

@@ -350,8 +350,9 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
         v.set_block_size(kCertificateBlock);
         for (const auto& id : ids) *v.add_pose_ids() = ToProto(id);
         v.mutable_values()->Add(values.data(), values.data() + values.size());
-        Send(*out_, transport::Pack(v), true);
-        RememberSent(&round_sent_, transport::Pack(v));
+        transport::Message m = transport::Pack(v);
+        Send(*out_, m, true);
+        RememberSent(&round_sent_, std::move(m));
     };
     const auto send_reduction = [this](int step, int stage, const std::vector<double>& values) {
         v1::CertificateReduction r;
@@ -360,11 +361,13 @@ void CertifierActor::OnRound(const v1::CertificateRound& round) {
         r.set_step(static_cast<std::uint32_t>(step));
         r.set_stage(static_cast<std::uint32_t>(stage));
         r.mutable_values()->Add(values.begin(), values.end());
-        Send(*out_, transport::Pack(r), true);
-        RememberSent(&round_sent_, transport::Pack(r));
+        transport::Message m = transport::Pack(r);
+        Send(*out_, m, true);
+        RememberSent(&round_sent_, std::move(m));
     };
     lanczos_ = certify::MakeRoundParticipant(std::move(problem), Wiring().robots, round_,
                                              config_.lanczos, send_vector, send_reduction);
+    round_began_ = std::chrono::steady_clock::now();
     lanczos_->Begin();
     auto early = std::move(early_[round_]);
     early_.clear();
@@ -420,6 +423,9 @@ void CertifierActor::RoundFinished() {
         std::lock_guard lock(verdict_mutex_);
         if (verdict_ && verdict_->round == verdict.round) return;  // already counted
     }
+    round_us_ += static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                                std::chrono::steady_clock::now() - round_began_)
+                                                .count());
     // The anchor decides: the round's sums and lambda_min by the central rule, with the PSD test
     // of S + e D of the round's graph (the bundles the round named: one X, one edge set).
     slam::PoseGraph graph;

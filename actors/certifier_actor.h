@@ -79,6 +79,9 @@ class CertifierActor final : public NodeActor {
     /// Lanczos steps (S v products, each one neighbour exchange and two sums) of every round
     /// this robot finished.
     std::uint64_t LanczosSteps() const { return lanczos_steps_.load(); }
+    /// Wall seconds of every round this robot finished, from its share's start to its verdict
+    /// (the anchor's decision after it not included).
+    double RoundSeconds() const { return 1e-6 * static_cast<double>(round_us_.load()); }
     /// Anchor: changed bundles not re-checked because they stayed at a certified solution
     /// (CertifierConfig::settled_move_relative).
     int SettledSkips() const { return skipped_.load(); }
@@ -152,6 +155,8 @@ class CertifierActor final : public NodeActor {
     std::map<int, Bundle> certified_bundles_;
     std::atomic<int> skipped_{0};
     std::atomic<std::uint64_t> lanczos_steps_{0};
+    std::atomic<std::uint64_t> round_us_{0};               ///< RoundSeconds() in microseconds
+    std::chrono::steady_clock::time_point round_began_{};  ///< this robot's share of the round
     int level_ = 0;
     std::atomic<int> checks_{0};
     std::atomic<int> escapes_{0};

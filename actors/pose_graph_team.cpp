@@ -43,6 +43,7 @@ PoseGraphTeamResult SummariseNodes(const std::vector<const PoseGraphNode*>& node
     out.fallbacks = anchor.Certifier().Fallbacks();
     out.certificate_rounds = anchor.Certifier().Rounds();
     out.lanczos_steps = anchor.Certifier().LanczosSteps();
+    out.certificate_seconds = anchor.Certifier().RoundSeconds();
     return out;
 }
 

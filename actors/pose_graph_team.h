@@ -30,10 +30,11 @@ struct PoseGraphTeamResult {
     /// until robot 0's solver first heard a certified report (or -1)
     double seconds_to_converged = -1.0;
     double seconds_to_certified = -1.0;
-    int certificate_rounds = 0;       ///< distributed rounds robot 0's certifier finished
-    std::uint64_t lanczos_steps = 0;  ///< S v products of those rounds (robot 0's count)
-    int escapes = 0;                  ///< saddle escapes sent (anchor)
-    int rank = 0;                     ///< robot 0's relaxation rank at the end
+    int certificate_rounds = 0;        ///< distributed rounds robot 0's certifier finished
+    std::uint64_t lanczos_steps = 0;   ///< S v products of those rounds (robot 0's count)
+    double certificate_seconds = 0.0;  ///< wall seconds of those rounds (robot 0's share)
+    int escapes = 0;                   ///< saddle escapes sent (anchor)
+    int rank = 0;                      ///< robot 0's relaxation rank at the end
     /// "synchronous": every robot's RBCD++ rounds reached the tolerance; "asynchronous": some
     /// robot gave up its rounds (or never ran them) and went on with asynchronous updates.
     std::string solver_mode = "asynchronous";

@@ -1,6 +1,7 @@
 // Solver actor: messages in -> SolverState; ticks -> block updates -> public poses out.
 #include "actors/solver_actor.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "actors/convert.h"
@@ -8,7 +9,6 @@
 #include "certislam/v1/control.pb.h"
 
 namespace certislam::actors {
-
 void SolverActorConfig::Validate() const {
     solver.Validate();
     if (tick.count() <= 0 || heartbeat.count() <= 0 || bundle_period.count() <= 0) {
@@ -43,9 +43,11 @@ void SolverActor::OnStart() {
 
 void SolverActor::Subscribe() {
     OpenClient(Edge::kKeyframes, RobotId());
+    // Reports and saddle escapes come from the anchor's certifier (the lowest id); the others'
+    // streams carry only their rounds' vectors and sums.
+    OpenClient(Edge::kCertify, *std::min_element(Wiring().robots.begin(), Wiring().robots.end()));
     for (int r : Wiring().robots) {
         OpenClient(Edge::kLoops, r);
-        OpenClient(Edge::kCertify, r);
         if (r != RobotId()) OpenClient(Edge::kPoses, r);
     }
     On(v1::Keyframe::descriptor()->full_name(), [this](const transport::Message& m) {
@@ -93,6 +95,16 @@ void SolverActor::Subscribe() {
         const auto report = transport::Unpack<v1::CertificateReport>(m);
         if (!report) return false;
         report_ = *report;
+        // S + eta D was PSD, but the bound was too loose for a verdict: the bound is first order
+        // in the gradient, so the asynchronous steps go on to the rounds' refined tolerance, and
+        // the moved blocks open a new check (the synchronous rounds refine by themselves).
+        const double refined =
+            std::min(1.0, config_.rounds.refine_rel_grad_tol / config_.solver.rbcd.rel_grad_tol);
+        if (report->verdict() == v1::CERTIFICATE_VERDICT_INCONCLUSIVE && report->has_bound() &&
+            tolerance_scale_ > refined) {
+            tolerance_scale_ = refined;
+            work_ = true;
+        }
         UpdateSnapshot();
         return true;
     });
@@ -181,6 +193,7 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
 }
 
 void SolverActor::Changed() {
+    tolerance_scale_ = 1.0;          // a new graph: the configured tolerance again
     if (restored_) report_.reset();  // the checkpoint's report is of the graph before this change
     restored_ = false;
     work_ = true;
@@ -190,6 +203,13 @@ void SolverActor::Changed() {
 
 void SolverActor::Tick() {
     TryRestore();
+    // A certifier that began reading this robot's bundles (a round named it a neighbour) gets the
+    // last one now, not at the next heartbeat's re-send.
+    if (bundle_out_->subscribers() != bundle_readers_) {
+        const bool more = bundle_out_->subscribers() > bundle_readers_;
+        bundle_readers_ = bundle_out_->subscribers();
+        if (more && local_ok_) SendBundle();
+    }
     if (InRounds()) {
         SyncTick();
         return;
@@ -204,7 +224,8 @@ void SolverActor::Tick() {
     if (!work_ || state_.NumPoses() == 0) return;
     double team_cost = 0.0;
     for (const auto& [robot, cost] : team_cost_) team_cost += robot == RobotId() ? 0.0 : cost;
-    const certify::SolverStepResult step = state_.Step(team_cost + team_cost_[RobotId()]);
+    const certify::SolverStepResult step =
+        state_.Step(team_cost + team_cost_[RobotId()], tolerance_scale_);
     ++steps_;
     team_cost_[RobotId()] = step.cost;
     grad_norm_ = step.grad_norm;
@@ -302,8 +323,14 @@ void SolverActor::SendBundle() {
     last_bundle_ = std::chrono::steady_clock::now();
 }
 
+SolverActor::SnapshotKey SolverActor::KeyOfSnapshot() const {
+    return {steps_,           rounds_swept_, rounds_converged_,       rounds_gave_up_, local_ok_,
+            publish_pending_, IsFinal(),     state_.StaircaseLevel(), grad_norm_,      changed_};
+}
+
 void SolverActor::UpdateSnapshot() {
     MaybeCheckpoint();
+    snapshot_key_ = KeyOfSnapshot();
     SolverSnapshot s;
     s.num_poses = state_.NumPoses();
     s.final = keyframes_ended_;

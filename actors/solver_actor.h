@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstddef>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -116,6 +117,10 @@ class SolverActor final : public NodeActor {
     void SendBundle();
     void Publish();
     void UpdateSnapshot();
+    /// What a snapshot shows that a tick can change (the rest changes with the graph, `changed_`).
+    using SnapshotKey = std::tuple<std::uint64_t, std::uint64_t, bool, bool, bool, bool, bool, int,
+                                   double, std::chrono::steady_clock::time_point>;
+    SnapshotKey KeyOfSnapshot() const;
     void Changed();
     void Replay();           ///< durable log: loops, and the last checkpoint kept for later
     void MaybeCheckpoint();  ///< a certified final state not logged yet: logged
@@ -142,8 +147,12 @@ class SolverActor final : public NodeActor {
     std::uint64_t steps_ = 0;
     double grad_norm_ = 0.0;
     std::chrono::steady_clock::time_point last_bundle_{};
+    std::size_t bundle_readers_ = 0;  ///< subscribers of the bundle stream at the last tick
     std::chrono::steady_clock::time_point last_publish_{};
     bool publish_pending_ = false;  ///< a step moved the block since the last publish
+    /// Multiplies the asynchronous steps' tolerance: rounds.refine_rel_grad_tol / rel_grad_tol
+    /// after an inconclusive report whose bound was too loose, back to 1 when the graph changes
+    double tolerance_scale_ = 1.0;
     std::optional<v1::CertificateReport> report_;
     std::chrono::steady_clock::time_point changed_ = std::chrono::steady_clock::now();
 
@@ -167,6 +176,7 @@ class SolverActor final : public NodeActor {
     std::chrono::steady_clock::time_point restore_checked_{};  ///< changed_ at the last check
     mutable std::mutex snapshot_mutex_;
     SolverSnapshot snapshot_;
+    SnapshotKey snapshot_key_{};  ///< KeyOfSnapshot() when snapshot_ was taken
 };
 
 }  // namespace certislam::actors

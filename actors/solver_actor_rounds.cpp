@@ -130,7 +130,7 @@ void SolverActor::SyncTick() {
     if (restored_) {  // the certified rounds' result came from the log: no peer to sweep with
         if (publish_pending_) Publish();
         if (bundle_dirty_) SendBundle();
-        UpdateSnapshot();
+        if (KeyOfSnapshot() != snapshot_key_) UpdateSnapshot();
         return;
     }
     if (rounds_ && rounds_level_ != state_.StaircaseLevel()) {
@@ -163,7 +163,8 @@ void SolverActor::SyncTick() {
     if (publish_pending_) Publish();
     const auto now = std::chrono::steady_clock::now();
     if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
-    UpdateSnapshot();
+    // A snapshot copies the trajectory and the edges: not on every tick of a converged team.
+    if (KeyOfSnapshot() != snapshot_key_) UpdateSnapshot();
 }
 
 }  // namespace certislam::actors

@@ -217,6 +217,7 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
     r.cost_offset = Field<double>(anchor, "cost_offset", id);
     r.certificate_rounds = Field<int>(anchor, "certificate_rounds", id);
     r.lanczos_steps = Field<std::uint64_t>(anchor, "lanczos_steps", id);
+    r.certificate_seconds = Field<double>(anchor, "certificate_seconds", id);
     r.rank = Field<int>(anchor, "rank", id);
     r.restarts = Field<int>(anchor, "restarts", id);
     r.fallbacks = Field<int>(anchor, "central_fallbacks", id);

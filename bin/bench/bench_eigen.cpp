@@ -15,9 +15,11 @@
 #include "certify/distributed/distributed_lanczos.h"
 #include "certify/distributed/distributed_lobpcg.h"
 #include "certify/min_eigenpair.h"
+#include "certify/pipeline/team_rounds_in_memory.h"
 #include "certify/pose_graph_solver.h"
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
+#include "slam/core/graph_split.h"
 #include "slam/core/partition.h"
 #include "slam/io/g2o_io.h"
 
@@ -73,9 +75,19 @@ void Print(const std::vector<Row>& rows, bool json) {
     }
 }
 
-/// The point S is built at: the solved optimum (rounded poses, rank d) or the chordal start.
-Eigen::MatrixXd PointOf(const slam::PoseGraph& graph, const std::string& point) {
+/// The point S is built at: the solved optimum (rounded poses, rank d), the chordal start, or
+/// the last iterate of the robots' synchronous rounds (what `solve --distributed` certifies).
+Eigen::MatrixXd PointOf(const slam::PoseGraph& graph, const std::string& point,
+                        const slam::Partition& partition, const certify::TeamRoundsConfig& rounds) {
     if (point == "chordal") return slam::LiftToRank(slam::ChordalInitialization(graph), 5);
+    if (point == "rounds") {
+        const certify::InMemoryTeam team = certify::RunTeamRoundsInMemory(
+            slam::SplitGraph(graph, partition), certify::SolverConfig{}, rounds);
+        if (!team.AllConverged()) throw std::runtime_error("the rounds did not converge");
+        std::fprintf(stderr, "rounds: %llu swept, %d restarts\n",
+                     static_cast<unsigned long long>(team.rounds.front()), team.restarts.front());
+        return team.X();
+    }
     const certify::PoseGraphSolverResult solved = certify::SolvePoseGraph(graph);
     return solved.poses;
 }
@@ -128,8 +140,13 @@ int RunEigenBench(int argc, char** argv) {
     certify::LobpcgSettings lobpcg;
     app.add_option("files", files, "g2o files")->required();
     app.add_option("--robots", robots, "contiguous robot blocks")->check(CLI::PositiveNumber);
-    app.add_option("--point", point, "optimum (solved, rounded) or chordal (lifted to rank 5)")
-        ->check(CLI::IsMember({"optimum", "chordal"}));
+    app.add_option("--point", point,
+                   "optimum (solved, rounded), chordal (lifted to rank 5) or rounds (the robots' "
+                   "synchronous rounds' last iterate)")
+        ->check(CLI::IsMember({"optimum", "chordal", "rounds"}));
+    certify::TeamRoundsConfig rounds;
+    app.add_option("--rounds-tol", rounds.rel_grad_tol,
+                   "--point rounds: the rounds' relative gradient tolerance");
     app.add_option("--block", lobpcg.block_size, "LOBPCG block size")->check(CLI::Range(1, 16));
     app.add_option("--drop", lobpcg.drop_tolerance, "LOBPCG Gram drop tolerance");
     app.add_option("--shift", lobpcg.shift_relative, "LOBPCG preconditioner shift (relative)");
@@ -141,12 +158,12 @@ int RunEigenBench(int argc, char** argv) {
     for (const std::string& file : files) {
         const slam::PoseGraphReadResult read = slam::ReadG2o(file);
         if (!read.ok()) throw std::runtime_error(read.error);
-        const slam::PoseGraph& graph = read.graph;
-        const Eigen::MatrixXd X = PointOf(graph, point);
+        const slam::PoseGraph graph = slam::LiftPlanar(read.graph);  // the robots solve in 3D
+        const slam::Partition partition = slam::ContiguousPartition(graph.n, robots);
+        const Eigen::MatrixXd X = PointOf(graph, point, partition, rounds);
         const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(graph);
         const Eigen::SparseMatrix<double> S =
             certify::CertificateMatrix(Q, certify::LambdaBlocks(Q, X, graph.d), graph.d);
-        const slam::Partition partition = slam::ContiguousPartition(graph.n, robots);
         std::vector<certify::CertificateRows> split;
         split.reserve(static_cast<size_t>(robots));
         for (int k = 0; k < robots; ++k) {

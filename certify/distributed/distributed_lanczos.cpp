@@ -28,18 +28,8 @@ constexpr std::uint64_t kRobotSeed = 7919;  ///< start vector seed stride per ro
 constexpr double kInverseIterationShift = 1e-10;  ///< shift below lambda, relative to max |Ritz|
 constexpr int kInverseIterationSweeps = 3;        ///< sweeps of inverse iteration
 
-/// Setup sums, in message order.
-enum SetupIndex {
-    kCost,
-    kGradientSq,
-    kQRowSum,
-    kTraceLambda,
-    kStartNormSq,
-    kDimension,
-    kXNormSq,
-    kObjectiveNoise,
-    kSetupN
-};
+/// Lanczos's own setup sum, after the shared ones (SetupShares).
+constexpr int kStartNormSq = kSetupShared;
 
 /// u -= sum_i c_i V_i, element by element in i order: the owner of a Lanczos vector and every
 /// reader of its public entries do the same operations, so they hold the same numbers.
@@ -108,17 +98,6 @@ Eigen::VectorXd TridiagonalEigenvector(const Eigen::VectorXd& a, const Eigen::Ve
     return y;
 }
 
-/// The team's first-order quantities from the setup sums.
-void SetTeamSums(const std::vector<double>& sums, int d, DistributedVerdict* v) {
-    v->cost = sums[kCost];
-    v->gradient_norm = std::sqrt(sums[kGradientSq]);
-    v->q_norm = sums[kQRowSum];
-    v->dual_value = sums[kTraceLambda];
-    v->x_norm = std::sqrt(sums[kXNormSq]);
-    v->objective_noise = sums[kObjectiveNoise];
-    v->poses = static_cast<int>(sums[kDimension]) / (d + 1);
-}
-
 }  // namespace
 
 CertificateQuantities QuantitiesOf(const DistributedVerdict& v) {
@@ -156,7 +135,8 @@ LanczosParticipant::LanczosParticipant(LocalCertificateProblem problem, std::vec
       team_(std::move(team)),
       settings_(settings),
       send_vector_(std::move(send_vector)),
-      send_reduction_(std::move(send_reduction)) {
+      send_reduction_(std::move(send_reduction)),
+      mailbox_(problem_.robot, team_, problem_.neighbor_robots) {
     settings_.Validate();
     verdict_.round = round;
 }
@@ -168,55 +148,27 @@ void LanczosParticipant::Begin() {
     Eigen::VectorXd q(rows.own.rows());
     for (Eigen::Index i = 0; i < q.size(); ++i) q[i] = normal(rng);
     basis_.push_back(q);
-    std::vector<double> setup(kSetupN);
-    setup[kCost] = problem_.cost;
-    setup[kGradientSq] = problem_.gradient_sq;
-    setup[kQRowSum] = problem_.q_row_sum;
-    setup[kTraceLambda] = rows.trace_lambda;
-    setup[kStartNormSq] = q.squaredNorm();
-    setup[kDimension] = static_cast<double>(q.size());
-    setup[kXNormSq] = problem_.x_norm_sq;
-    setup[kObjectiveNoise] = problem_.objective_noise;
-    Share(0, kSetupStage, setup);
+    Share(0, kSetupStage, SetupShares(problem_, {q.squaredNorm()}));
     SendVector(0, q);  // unnormalised: every reader divides by the norm from the setup sums
     Advance();
 }
 
 void LanczosParticipant::OnVector(int robot, int step, const std::vector<slam::PoseId>& ids,
                                   const Eigen::VectorXd& values) {
-    if (done_ || step < step_ || !problem_.neighbor_robots.count(robot)) return;
-    vectors_[step][robot] = {ids, values};
+    if (done_) return;
+    mailbox_.PutVector(robot, step, step_, ids, values);
     Advance();
 }
 
 void LanczosParticipant::OnReduction(int robot, int step, int stage,
                                      const std::vector<double>& values) {
-    if (done_ || step < step_ || robot == problem_.robot) return;
-    partials_[{step, stage}][robot] = values;
+    if (done_) return;
+    mailbox_.PutPartial(robot, step, stage, step_, values);
     Advance();
 }
 
-bool LanczosParticipant::Reduced(int step, int stage, std::vector<double>* sums,
-                                 bool max_of_third) {
-    const auto it = partials_.find({step, stage});
-    if (it == partials_.end() || it->second.size() < team_.size()) return false;
-    sums->clear();
-    for (const int r : team_) {  // the same order on every robot: the same sums, bit for bit
-        const auto p = it->second.find(r);
-        if (p == it->second.end()) return false;
-        if (sums->empty()) sums->assign(p->second.size(), 0.0);
-        if (p->second.size() != sums->size()) return false;
-        for (size_t i = 0; i < sums->size(); ++i) {
-            (*sums)[i] = max_of_third && i == kQRowSum ? std::max((*sums)[i], p->second[i])
-                                                       : (*sums)[i] + p->second[i];
-        }
-    }
-    partials_.erase(it);
-    return true;
-}
-
 void LanczosParticipant::Share(int step, int stage, const std::vector<double>& values) {
-    partials_[{step, stage}][problem_.robot] = values;
+    mailbox_.PutOwn(step, stage, values);
     send_reduction_(step, stage, values);
 }
 
@@ -228,13 +180,11 @@ void LanczosParticipant::SendVector(int step, const Eigen::VectorXd& u) {
 }
 
 bool LanczosParticipant::Product() {
-    const auto it = vectors_.find(step_);
-    for (const int r : problem_.neighbor_robots) {
-        if (it == vectors_.end() || !it->second.count(r)) return false;
-    }
+    std::map<int, NeighborEntries>* vectors = mailbox_.Vectors(step_);
+    if (vectors == nullptr) return false;
     // Finish every neighbour's vector of this step: (u - V c) / beta, as its owner did.
     for (const int r : problem_.neighbor_robots) {
-        Eigen::VectorXd& values = it->second.at(r).second;
+        Eigen::VectorXd& values = vectors->at(r).second;
         auto& V = neighbor_basis_[r];
         bool consistent = V.size() == pending_c_.size();
         for (const auto& old : V) consistent = consistent && old.size() == values.size();
@@ -246,20 +196,13 @@ bool LanczosParticipant::Product() {
         values /= pending_b_;
         V.push_back(values);
     }
-    const int b = problem_.rows.d + 1;
-    Eigen::VectorXd nbr(b * static_cast<Eigen::Index>(problem_.neighbor_ids.size()));
-    for (size_t k = 0; k < problem_.neighbor_ids.size(); ++k) {
-        const slam::PoseId& id = problem_.neighbor_ids[k];
-        const auto& [ids, values] = it->second.at(id.robot);
-        const auto pos = std::find(ids.begin(), ids.end(), id);
-        if (pos == ids.end() || values.size() != b * static_cast<Eigen::Index>(ids.size())) {
-            Finish(DistributedVerdict::Status::kInconsistent);
-            return false;
-        }
-        nbr.segment(b * k, b) = values.segment(b * (pos - ids.begin()), b);
+    Eigen::MatrixXd nbr;
+    if (!GatherNeighborEntries(problem_, *vectors, 1, &nbr)) {
+        Finish(DistributedVerdict::Status::kInconsistent);
+        return false;
     }
-    if (it != vectors_.end()) vectors_.erase(it);
-    w_ = MultiplyRows(problem_.rows, basis_.back(), nbr);
+    mailbox_.EraseVectors(step_);
+    w_ = MultiplyRows(problem_.rows, basis_.back(), nbr.col(0));
     return true;
 }
 
@@ -268,19 +211,17 @@ void LanczosParticipant::Advance() {
     while (!done_) {
         switch (phase_) {
             case Phase::kSetup: {
-                if (!Reduced(0, kSetupStage, &sums, true)) return;
-                SetTeamSums(sums, problem_.rows.d, &verdict_);
-                // Not a critical point: no eigenvalue can make a verdict (the centralised check
-                // stops here too, by the same rule), so no Lanczos step is spent.
-                CertificateConfig rule;
-                rule.eta_relative = settings_.eta_relative;
-                rule.gradient_tolerance_relative = settings_.gradient_tolerance_relative;
-                CertificateResult first;
-                const bool critical = FirstOrderVerdict(QuantitiesOf(verdict_), rule, &first);
-                verdict_.eta = first.eta;
-                verdict_.gradient_tolerance = first.gradient_tolerance;
-                if (!critical) return Finish(DistributedVerdict::Status::kNotCritical);
-                max_steps_ = std::min(settings_.max_krylov, static_cast<int>(sums[kDimension]));
+                if (!mailbox_.Reduce(0, kSetupStage, &sums, {kSetupQRowSum})) return;
+                if (sums.size() != kStartNormSq + 1) {
+                    return Finish(DistributedVerdict::Status::kInconsistent);
+                }
+                // Not a critical point: no Lanczos step is spent (the centralised check stops
+                // here too, by the same rule).
+                if (!ReadSetupSums(sums, problem_.rows.d, settings_, &verdict_)) {
+                    return Finish(DistributedVerdict::Status::kNotCritical);
+                }
+                max_steps_ =
+                    std::min(settings_.max_krylov, static_cast<int>(sums[kSetupDimension]));
                 pending_c_.clear();
                 pending_b_ = std::sqrt(sums[kStartNormSq]);
                 basis_.back() /= pending_b_;
@@ -294,7 +235,7 @@ void LanczosParticipant::Advance() {
                 break;
             }
             case Phase::kPass1: {
-                if (!Reduced(step_, kPass1Stage, &sums)) return;
+                if (!mailbox_.Reduce(step_, kPass1Stage, &sums)) return;
                 if (sums.size() != 1) return Finish(DistributedVerdict::Status::kInconsistent);
                 // Three-term recurrence, then one full Gram-Schmidt pass against every vector
                 // (the recurrence removed the large components; the pass removes the rest).
@@ -311,7 +252,7 @@ void LanczosParticipant::Advance() {
                 break;
             }
             case Phase::kPass2: {
-                if (!Reduced(step_, kPass2Stage, &sums)) return;
+                if (!mailbox_.Reduce(step_, kPass2Stage, &sums)) return;
                 if (sums.size() != basis_.size() + 1)
                     return Finish(DistributedVerdict::Status::kInconsistent);
                 const double norm_sq = sums.back();
@@ -362,8 +303,7 @@ Eigen::VectorXd LanczosParticipant::RitzSegment() const {
 void LanczosParticipant::Finish(DistributedVerdict::Status status) {
     verdict_.status = status;
     done_ = true;
-    vectors_.clear();
-    partials_.clear();
+    mailbox_.Clear();
 }
 
 }  // namespace certislam::certify

@@ -21,18 +21,8 @@ constexpr int kSumsStage = 1;               ///< the reduction of exchange e (st
 constexpr std::uint64_t kRobotSeed = 7919;  ///< start block seed stride per robot
 constexpr int kMaxShiftAttempts = 40;       ///< factorisations tried at most
 
-/// Setup sums, in message order (kQRowSum and kSRowSum are maxima, the rest sums).
-enum SetupIndex {
-    kCost,
-    kGradientSq,
-    kQRowSum,
-    kSRowSum,
-    kTraceLambda,
-    kDimension,
-    kXNormSq,
-    kObjectiveNoise,
-    kSetupN
-};
+/// LOBPCG's own setup sum, after the shared ones (SetupShares): ||S||_inf, a maximum.
+constexpr int kSRowSum = kSetupShared;
 
 /// Largest absolute row sum of the robot's rows of S.
 double RowSumOfS(const CertificateRows& rows) {
@@ -74,7 +64,8 @@ LobpcgParticipant::LobpcgParticipant(LocalCertificateProblem problem, std::vecto
       team_(std::move(team)),
       settings_(settings),
       send_vector_(std::move(send_vector)),
-      send_reduction_(std::move(send_reduction)) {
+      send_reduction_(std::move(send_reduction)),
+      mailbox_(problem_.robot, team_, problem_.neighbor_robots) {
     settings_.Validate();
     verdict_.round = round;
 }
@@ -90,31 +81,22 @@ void LobpcgParticipant::Begin() {
     P_.resize(rows.own.rows(), 0);
     AP_.resize(rows.own.rows(), 0);
     for (Eigen::Index i = 0; i < X_.size(); ++i) X_.data()[i] = normal(rng);
-    std::vector<double> setup(kSetupN);
-    setup[kCost] = problem_.cost;
-    setup[kGradientSq] = problem_.gradient_sq;
-    setup[kQRowSum] = problem_.q_row_sum;
-    setup[kSRowSum] = RowSumOfS(rows);
-    setup[kTraceLambda] = rows.trace_lambda;
-    setup[kDimension] = static_cast<double>(X_.rows());
-    setup[kXNormSq] = problem_.x_norm_sq;
-    setup[kObjectiveNoise] = problem_.objective_noise;
-    Share(0, kSetupStage, setup);
+    Share(0, kSetupStage, SetupShares(problem_, {RowSumOfS(rows)}));
     SendBlock(X_, Purpose::kStart);  // exchange 0, before the setup sums are in (as Lanczos)
     Advance();
 }
 
 void LobpcgParticipant::OnVector(int robot, int step, const std::vector<slam::PoseId>& ids,
                                  const Eigen::VectorXd& values) {
-    if (done_ || step < exchange_ || !problem_.neighbor_robots.count(robot)) return;
-    vectors_[step][robot] = {ids, values};
+    if (done_) return;
+    mailbox_.PutVector(robot, step, exchange_, ids, values);
     Advance();
 }
 
 void LobpcgParticipant::OnReduction(int robot, int step, int stage,
                                     const std::vector<double>& values) {
-    if (done_ || step < exchange_ || robot == problem_.robot) return;
-    partials_[{step, stage}][robot] = values;
+    if (done_) return;
+    mailbox_.PutPartial(robot, step, stage, exchange_, values);
     Advance();
 }
 
@@ -125,26 +107,8 @@ Eigen::VectorXd LobpcgParticipant::RitzSegment() const {
 void LobpcgParticipant::Share(int step, int stage, const std::vector<double>& values) {
     ++progress_.reductions;
     progress_.scalars_reduced += static_cast<double>(values.size());
-    partials_[{step, stage}][problem_.robot] = values;
+    mailbox_.PutOwn(step, stage, values);
     send_reduction_(step, stage, values);
-}
-
-bool LobpcgParticipant::Reduced(int step, int stage, std::vector<double>* sums, bool setup) {
-    const auto it = partials_.find({step, stage});
-    if (it == partials_.end() || it->second.size() < team_.size()) return false;
-    sums->clear();
-    for (const int r : team_) {  // the same order on every robot: the same sums, bit for bit
-        const auto p = it->second.find(r);
-        if (p == it->second.end()) return false;
-        if (sums->empty()) sums->assign(p->second.size(), 0.0);
-        if (p->second.size() != sums->size()) return false;
-        for (size_t i = 0; i < sums->size(); ++i) {
-            const bool max = setup && (i == kQRowSum || i == kSRowSum);
-            (*sums)[i] = max ? std::max((*sums)[i], p->second[i]) : (*sums)[i] + p->second[i];
-        }
-    }
-    partials_.erase(it);
-    return true;
 }
 
 void LobpcgParticipant::SendBlock(const Eigen::MatrixXd& B, Purpose purpose) {
@@ -165,28 +129,13 @@ void LobpcgParticipant::SendBlock(const Eigen::MatrixXd& B, Purpose purpose) {
 }
 
 bool LobpcgParticipant::Gather(Eigen::MatrixXd* neighbors) {
-    const int b = problem_.rows.d + 1;
-    const Eigen::Index cols = sent_.cols();
-    const auto it = vectors_.find(exchange_);
-    for (const int r : problem_.neighbor_robots) {
-        if (it == vectors_.end() || !it->second.count(r)) return false;
+    const std::map<int, NeighborEntries>* vectors = mailbox_.Vectors(exchange_);
+    if (vectors == nullptr) return false;
+    if (!GatherNeighborEntries(problem_, *vectors, sent_.cols(), neighbors)) {
+        Finish(DistributedVerdict::Status::kInconsistent);
+        return false;
     }
-    neighbors->resize(b * static_cast<Eigen::Index>(problem_.neighbor_ids.size()), cols);
-    for (size_t k = 0; k < problem_.neighbor_ids.size(); ++k) {
-        const slam::PoseId& id = problem_.neighbor_ids[k];
-        const auto& [ids, values] = it->second.at(id.robot);
-        const auto pos = std::find(ids.begin(), ids.end(), id);
-        const Eigen::Index per_column = b * static_cast<Eigen::Index>(ids.size());
-        if (pos == ids.end() || values.size() != per_column * cols) {
-            Finish(DistributedVerdict::Status::kInconsistent);
-            return false;
-        }
-        for (Eigen::Index j = 0; j < cols; ++j) {
-            neighbors->block(b * static_cast<Eigen::Index>(k), j, b, 1) =
-                values.segment(j * per_column + b * (pos - ids.begin()), b);
-        }
-    }
-    if (it != vectors_.end()) vectors_.erase(it);
+    mailbox_.EraseVectors(exchange_);
     return true;
 }
 
@@ -195,9 +144,10 @@ void LobpcgParticipant::Advance() {
     while (!done_) {
         switch (phase_) {
             case Phase::kSetup: {
-                if (!Reduced(0, kSetupStage, &sums, true)) return;
-                if (sums.size() != kSetupN)
+                if (!mailbox_.Reduce(0, kSetupStage, &sums, {kSetupQRowSum, kSRowSum})) return;
+                if (sums.size() != kSRowSum + 1) {
                     return Finish(DistributedVerdict::Status::kInconsistent);
+                }
                 if (!Setup(sums)) return;
                 phase_ = Phase::kProduct;
                 break;
@@ -213,7 +163,7 @@ void LobpcgParticipant::Advance() {
                 break;
             }
             case Phase::kSums: {
-                if (!Reduced(exchange_, kSumsStage, &sums)) return;
+                if (!mailbox_.Reduce(exchange_, kSumsStage, &sums)) return;
                 OnSums(sums);
                 break;
             }
@@ -222,26 +172,11 @@ void LobpcgParticipant::Advance() {
 }
 
 bool LobpcgParticipant::Setup(const std::vector<double>& sums) {
-    verdict_.cost = sums[kCost];
-    verdict_.gradient_norm = std::sqrt(sums[kGradientSq]);
-    verdict_.q_norm = sums[kQRowSum];
-    verdict_.dual_value = sums[kTraceLambda];
-    verdict_.x_norm = std::sqrt(sums[kXNormSq]);
-    verdict_.objective_noise = sums[kObjectiveNoise];
-    verdict_.poses = static_cast<int>(sums[kDimension]) / (problem_.rows.d + 1);
-    // The first-order rule of the centralised check: no eigenvalue at a non-critical X.
-    CertificateConfig rule;
-    rule.eta_relative = settings_.eta_relative;
-    rule.gradient_tolerance_relative = settings_.gradient_tolerance_relative;
-    CertificateResult first;
-    const bool critical = FirstOrderVerdict(QuantitiesOf(verdict_), rule, &first);
-    verdict_.eta = first.eta;
-    verdict_.gradient_tolerance = first.gradient_tolerance;
-    if (!critical) {
+    if (!ReadSetupSums(sums, problem_.rows.d, settings_, &verdict_)) {
         Finish(DistributedVerdict::Status::kNotCritical);
         return false;
     }
-    if (3 * X_.cols() > static_cast<Eigen::Index>(sums[kDimension])) {  // [X W P] cannot fit
+    if (3 * X_.cols() > static_cast<Eigen::Index>(sums[kSetupDimension])) {  // [X W P] cannot fit
         Finish(DistributedVerdict::Status::kNotConverged);
         return false;
     }
@@ -411,8 +346,7 @@ void LobpcgParticipant::Finish(DistributedVerdict::Status status) {
     verdict_.status = status;
     verdict_.steps = exchanges_done_;
     done_ = true;
-    vectors_.clear();
-    partials_.clear();
+    mailbox_.Clear();
 }
 
 }  // namespace certislam::certify

@@ -65,7 +65,6 @@ class LobpcgParticipant : public RoundParticipant {
     void Verify(bool final);
     void SendBlock(const Eigen::MatrixXd& B, Purpose purpose);
     bool Update();
-    bool Reduced(int step, int stage, std::vector<double>* sums, bool setup = false);
     void Share(int step, int stage, const std::vector<double>& values);
     void Finish(DistributedVerdict::Status status);
 
@@ -94,10 +93,7 @@ class LobpcgParticipant : public RoundParticipant {
     double best_residual_ = 0.0;       ///< smallest recurrence residual since the last refresh
     int stalled_ = 0;                  ///< iterations since best_residual_ last halved
     bool refresh_ = false;             ///< the verify in progress restarts from exact S X
-    /// vector step -> robot -> (ids, values)
-    std::map<int, std::map<int, std::pair<std::vector<slam::PoseId>, Eigen::VectorXd>>> vectors_;
-    /// (step, stage) -> robot -> partial sums
-    std::map<std::pair<int, int>, std::map<int, std::vector<double>>> partials_;
+    RoundMailbox mailbox_;
 };
 
 }  // namespace certislam::certify

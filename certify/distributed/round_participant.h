@@ -3,10 +3,14 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
+#include <set>
+#include <utility>
 #include <vector>
 
 #include "certify/distributed/distributed_certificate.h"
@@ -74,6 +78,72 @@ class RoundParticipant {
     /// This robot's segment of the Ritz vector of lambda_min (zero before the first estimate).
     virtual Eigen::VectorXd RitzSegment() const = 0;
 };
+
+/// The setup sums every participant reduces first (step 0, stage 0): the team's first-order
+/// quantities at the round's X, in this order, then the method's own.
+enum SetupSum {
+    kSetupCost,            ///< f(X), summed
+    kSetupGradientSq,      ///< ||2 X S||_F^2, summed
+    kSetupQRowSum,         ///< ||Q||_inf, the maximum over robots
+    kSetupTraceLambda,     ///< tr(Lambda), summed
+    kSetupDimension,       ///< rows of S, summed
+    kSetupXNormSq,         ///< ||X||_F^2, summed
+    kSetupObjectiveNoise,  ///< f's rounding floor, summed
+    kSetupShared           ///< the first method-specific sum
+};
+
+/// This robot's setup shares: the first-order quantities of `problem`, then `extra`.
+std::vector<double> SetupShares(const LocalCertificateProblem& problem,
+                                const std::vector<double>& extra);
+
+/// Reads the team's setup sums into `v` (cost, tr(Lambda), norms, poses) and applies the
+/// centralised check's first-order rule (FirstOrderVerdict), setting eta and the gradient
+/// tolerance; false at a non-critical X (no eigenvalue can make a verdict there).
+bool ReadSetupSums(const std::vector<double>& sums, int d, const LanczosSettings& settings,
+                   DistributedVerdict* v);
+
+/// A neighbour's public entries of one vector (or block) message: its pose ids and values.
+using NeighborEntries = std::pair<std::vector<slam::PoseId>, Eigen::VectorXd>;
+
+/// The messages of a round a participant holds until it uses them: neighbours' public entries by
+/// step and every robot's partial sums by (step, stage), its own included.
+class RoundMailbox {
+  public:
+    RoundMailbox(int robot, std::vector<int> team, std::set<int> neighbor_robots);
+
+    /// Keeps a neighbour's entries of vector `step` (a non-neighbour's, or a step before
+    /// `current`, is dropped).
+    void PutVector(int robot, int step, int current, const std::vector<slam::PoseId>& ids,
+                   const Eigen::VectorXd& values);
+    /// Keeps another robot's partial sums of (step, stage) (a step before `current`: dropped).
+    void PutPartial(int robot, int step, int stage, int current, const std::vector<double>& values);
+    /// Keeps this robot's own partial sums of (step, stage).
+    void PutOwn(int step, int stage, const std::vector<double>& values);
+    /// The team's sums of (step, stage), added in team order so that every robot gets the same
+    /// bits, the maximum at indices `max_at`; false until every robot's partial sums are in.
+    bool Reduce(int step, int stage, std::vector<double>* sums,
+                const std::vector<std::size_t>& max_at = {});
+    /// Every neighbour's entries of vector `step` by robot; nullptr until all are in.
+    std::map<int, NeighborEntries>* Vectors(int step);
+    /// Forgets vector `step`'s entries.
+    void EraseVectors(int step) { vectors_.erase(step); }
+    /// Forgets everything (the round is over).
+    void Clear();
+
+  private:
+    int robot_;
+    std::vector<int> team_;
+    std::set<int> neighbor_robots_;
+    std::map<int, std::map<int, NeighborEntries>> vectors_;  ///< step -> robot -> entries
+    std::map<std::pair<int, int>, std::map<int, std::vector<double>>> partials_;
+};
+
+/// The neighbours' entries of a `cols`-column block at problem.neighbor_ids (b rows per pose, in
+/// that order) from their messages, whose values hold the block's columns one after another;
+/// false when a message does not cover a pose this robot reads.
+bool GatherNeighborEntries(const LocalCertificateProblem& problem,
+                           const std::map<int, NeighborEntries>& vectors, Eigen::Index cols,
+                           Eigen::MatrixXd* out);
 
 /// The participant `settings.method` names (LanczosParticipant or LobpcgParticipant).
 std::unique_ptr<RoundParticipant> MakeRoundParticipant(

@@ -285,8 +285,8 @@ bool SolverState::AdoptBlock(const Eigen::MatrixXd& X_own, int staircase_level) 
     return true;
 }
 
-SolverStepResult SolverState::Step(double team_cost) {
-    return StepTo(impl_->config.rbcd.rel_grad_tol * std::max(1.0, team_cost));
+SolverStepResult SolverState::Step(double team_cost, double tolerance_scale) {
+    return StepTo(tolerance_scale * impl_->config.rbcd.rel_grad_tol * std::max(1.0, team_cost));
 }
 
 SolverStepResult SolverState::StepTo(double tol) {

@@ -84,8 +84,8 @@ class SolverState {
 
     /// Rebuilds the agent if the graph changed, then a few trust-region steps on the block
     /// against the neighbours' last known poses (RBCD Alg. 1 line 4, asynchronous).
-    /// `team_cost` scales the tolerance (rel_grad_tol * max(1, team_cost)).
-    SolverStepResult Step(double team_cost);
+    /// `team_cost` scales the tolerance (tolerance_scale * rel_grad_tol * max(1, team_cost)).
+    SolverStepResult Step(double team_cost, double tolerance_scale = 1.0);
     /// Same with the block's gradient tolerance given (absolute).
     SolverStepResult StepTo(double grad_tol);
     /// This robot's share of f and its block gradient norm against the neighbours' last poses

@@ -33,10 +33,15 @@ TeamRounds::TeamRounds(int robot, std::vector<int> robots, std::set<int> neighbo
       neighbours_(std::move(neighbours)),
       config_(config) {
     if (!(config_.rel_grad_tol > 0.0) || config_.max_rounds < 1 ||
-        !(config_.local_tol_factor > 0.0 && config_.local_tol_factor <= 1.0)) {
+        !(config_.local_tol_factor > 0.0 && config_.local_tol_factor <= 1.0) ||
+        !(config_.refine_rel_grad_tol > 0.0 &&
+          config_.refine_rel_grad_tol <= config_.rel_grad_tol) ||
+        config_.refine_rounds < 0) {
         throw std::invalid_argument(
             "TeamRoundsConfig: rel_grad_tol = " + std::to_string(config_.rel_grad_tol) +
-            " must be > 0, local_tol_factor = " + std::to_string(config_.local_tol_factor) +
+            " must be > 0, refine_rel_grad_tol = " + std::to_string(config_.refine_rel_grad_tol) +
+            " in (0, rel_grad_tol], refine_rounds = " + std::to_string(config_.refine_rounds) +
+            " >= 0, local_tol_factor = " + std::to_string(config_.local_tol_factor) +
             " in (0, 1], max_rounds = " + std::to_string(config_.max_rounds) + " >= 1");
     }
 }
@@ -133,8 +138,7 @@ RoundAction TeamRounds::Next() {
         a.own_start = Extrapolate(own_.at(accepted_), prev->second, beta_);
         a.neighbours = NeighbourPoses(current_, true);
         // MATH.md: the local tolerance must be tighter than the global one.
-        a.block_tol =
-            config_.local_tol_factor * config_.rel_grad_tol * std::max(1.0, accepted_cost_);
+        a.block_tol = config_.local_tol_factor * TeamTolerance() * std::max(1.0, accepted_cost_);
         return a;
     }
     if (!evaluated_) {
@@ -169,7 +173,15 @@ void TeamRounds::Decide() {
         accepted_ = current_;
         accepted_cost_ = f;
         gamma_ = plain_ ? 1.0 : gamma_next_;
-        converged_ = std::sqrt(grad_sq) <= config_.rel_grad_tol * std::max(1.0, f);
+        const double grad = std::sqrt(grad_sq), scale = std::max(1.0, f);
+        if (!within_ && grad <= config_.rel_grad_tol * scale) within_ = current_;
+        // Refined, or out of refinement rounds (the rounds' own budget included).
+        const auto last = static_cast<std::uint64_t>(config_.max_rounds);
+        converged_ =
+            grad <= config_.refine_rel_grad_tol * scale ||
+            (within_ &&
+             current_ >=
+                 std::min(*within_ + static_cast<std::uint64_t>(config_.refine_rounds), last));
     } else {
         ++restarts_;
         gamma_ = 1.0;
@@ -180,6 +192,10 @@ void TeamRounds::Decide() {
     gamma_next_ = 0.5 * (1.0 + std::sqrt(1.0 + 4.0 * gamma_ * gamma_));
     beta_ = config_.acceleration && !plain_ ? (gamma_ - 1.0) / gamma_next_ : 0.0;
     Prune();
+}
+
+double TeamRounds::TeamTolerance() const {
+    return within_ ? config_.refine_rel_grad_tol : config_.rel_grad_tol;
 }
 
 void TeamRounds::Prune() {

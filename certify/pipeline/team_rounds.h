@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <set>
 #include <vector>
 
@@ -22,6 +23,15 @@ struct TeamRoundsConfig {
     /// than RbcdConfig::rel_grad_tol: the certificate's bound needs lambda_min(S) near 0, and
     /// S's error is first order in the gradient.
     double rel_grad_tol = 1e-8;
+    /// Below rel_grad_tol the rounds go on towards this tolerance, (0, rel_grad_tol]: at an
+    /// inexact X the smallest eigenvalue of S dips below 0 along the translations, and the
+    /// certificate's bound grows with |lambda_min| tr(X^T X), so a metric-scale map (sphere2500)
+    /// needs a gradient well below rel_grad_tol to be certified within 1e-6, and its
+    /// eigen-solve converges in far fewer steps there.
+    double refine_rel_grad_tol = 1e-10;
+    /// Rounds of refinement at most, >= 0 (RBCD++'s tail is linear: a graph that gains a decade
+    /// in a few rounds reaches refine_rel_grad_tol, a slow one stops near rel_grad_tol); 0: none.
+    int refine_rounds = 40;
     double local_tol_factor = 0.1;  ///< a block update stops at this * the team tolerance, (0, 1]
     int max_rounds = 1000;  ///< rounds before giving up (the caller goes asynchronous), >= 1
 };
@@ -71,6 +81,8 @@ class TeamRounds {
     PoseBlocks NeighbourPoses(std::uint64_t round, bool extrapolate_higher) const;
     void Decide();
     void Prune();
+    /// The team's gradient tolerance the sweeps work towards (relative to max(1, f)).
+    double TeamTolerance() const;
 
     int robot_;
     std::vector<int> robots_;
@@ -88,6 +100,7 @@ class TeamRounds {
     double beta_ = 0.0;                ///< extrapolation weight of current_
     double gamma_next_ = 1.0;          ///< gamma if current_ is accepted
     double accepted_cost_ = 0.0;       ///< f at accepted_
+    std::optional<std::uint64_t> within_;  ///< first round accepted below rel_grad_tol
     bool converged_ = false;
     std::uint64_t swept_ = 0;
     int restarts_ = 0;

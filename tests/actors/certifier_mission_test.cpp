@@ -68,7 +68,8 @@ TEST(CertifierMission, DistributedRoundsCertifyATwoRobotMissionInTime) {
         kVerdictBound,
         [&] { return certified(solvers[0]->Snapshot()) && certified(solvers[1]->Snapshot()); }))
         << "no certified verdict on the whole graph within the bound; rounds "
-        << certifiers[0]->Rounds() << ", fallbacks " << certifiers[0]->Fallbacks();
+        << certifiers[0]->Rounds() << ", fallbacks " << certifiers[0]->Fallbacks() << ", last: "
+        << (certifiers[0]->LastCertificate() ? certifiers[0]->LastCertificate()->reason : "none");
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     RecordProperty("seconds_to_certified", std::to_string(seconds));

@@ -3,11 +3,13 @@
 // certifier broadcasts a CERTIFIED verdict to both; a silent third robot stops nobody.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <set>
 #include <thread>
 #include <utility>
 
 #include "actors/certifier_actor.h"
+#include "actors/convert.h"
 #include "actors/solver_actor.h"
 #include "tests/actors/solver_fixture.h"
 
@@ -103,6 +105,84 @@ TEST(SolverActor, CountedEndOfLoopsWaitsForTheLoopsItCounts) {
     std::set<std::pair<slam::PoseId, slam::PoseId>> ends;  // parallel loops merge
     for (const auto& l : problem.loops) ends.insert({l.a, l.b});
     for (auto& s : solvers) EXPECT_EQ(s->Snapshot().inter_robot_loops, int(ends.size()));
+}
+
+// A report whose S + eta D was PSD but whose bound was too loose (inconclusive with a bound):
+// the bound is first order in the gradient, so the asynchronous solvers step on to the rounds'
+// refined tolerance, which moves their blocks and opens a new check.
+TEST(SolverActor, InconclusiveBoundTightensTheAsynchronousTolerance) {
+    constexpr double kLooseTolerance = 1e-3;  // relative: RBCD stops just below it
+    TwoRobotProblem problem = MakeTwoRobotProblem(30, 4, 5);
+    problem.config.rbcd.rel_grad_tol = kLooseTolerance;
+    const slam::PoseGraph graph =
+        certify::BuildJointGraph(problem.odometry, problem.loops, problem.config.noise);
+    const double f = certify::SolveCertifiedJoint(graph, certify::MissionSolverConfig{}).cost;
+    const double tightened_tol = SolverActorConfig{}.rounds.refine_rel_grad_tol * std::max(1.0, f);
+    zmq::context_t context;
+    const std::vector<int> robots{0, 1};
+    transport::Endpoint anchor(context, ServerConfig(InprocWiring(0, robots), Edge::kCertify));
+    std::vector<std::unique_ptr<SolverActor>> solvers;
+    for (int r : robots) {
+        solvers.push_back(
+            std::make_unique<SolverActor>(context, InprocWiring(r, robots), Config(problem)));
+        solvers.back()->Start();
+    }
+    ASSERT_TRUE(anchor.WaitForSubscribers(2, std::chrono::seconds(5)));
+    Feeder feeder(context, robots, 2);
+    feeder.Feed(problem);
+    const auto below = [&](double tol) {
+        for (const auto& s : solvers) {
+            const SolverSnapshot snap = s->Snapshot();
+            if (!snap.final || !snap.local_ok || !(snap.grad_norm <= tol)) return false;
+        }
+        return true;
+    };
+    ASSERT_TRUE(WaitFor([&] { return below(kLooseTolerance * std::max(1.0, f)); }));
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));  // settled on each other's poses
+    ASSERT_FALSE(below(tightened_tol)) << "converged far below the loose tolerance by itself";
+
+    v1::CertificateReport report;
+    *report.mutable_header() = MakeHeader(0, 1, 0);
+    report.set_verdict(v1::CERTIFICATE_VERDICT_INCONCLUSIVE);
+    report.set_has_bound(true);
+    ASSERT_EQ(anchor.Send(transport::Pack(report)), transport::SendStatus::kSent);
+    EXPECT_TRUE(WaitFor([&] { return below(tightened_tol); }))
+        << "block gradients " << solvers[0]->Snapshot().grad_norm << ", "
+        << solvers[1]->Snapshot().grad_norm << " above " << tightened_tol;
+}
+
+// A certifier begins reading a neighbour's bundles when a round names it: the converged solver
+// sends its bundle to the new reader at once, not at the heartbeat's re-send (every second).
+TEST(SolverActor, ANewBundleReaderGetsTheBundleWithoutWaitingForTheResend) {
+    constexpr auto kPrompt = std::chrono::milliseconds(300);  // the re-send comes after >= 1 s
+    constexpr int kReaders = 3;  // one late reader could be lucky with the re-send's timing
+    const TwoRobotProblem problem = MakeTwoRobotProblem(20, 4, 3);
+    zmq::context_t context;
+    const std::vector<int> robots{0, 1};
+    std::vector<std::unique_ptr<SolverActor>> solvers;
+    for (int r : robots) {
+        solvers.push_back(
+            std::make_unique<SolverActor>(context, InprocWiring(r, robots), Config(problem)));
+        solvers.back()->Start();
+    }
+    Feeder feeder(context, robots, 2);
+    feeder.Feed(problem);
+    ASSERT_TRUE(WaitFor([&] {
+        const auto a = solvers[0]->Snapshot(), b = solvers[1]->Snapshot();
+        return a.final && b.final && a.local_ok && b.local_ok;
+    }));
+    for (int k = 0; k < kReaders; ++k) {
+        transport::Endpoint reader(context,
+                                   ClientConfig(InprocWiring(0, robots), Edge::kBundle, 1));
+        ASSERT_TRUE(reader.WaitReady(std::chrono::seconds(5)));
+        const auto subscribed = std::chrono::steady_clock::now();
+        bool block = false;
+        while (!block && std::chrono::steady_clock::now() - subscribed < kPrompt) {
+            const auto m = reader.Receive(std::chrono::milliseconds(10));
+            block = m && m->Is<v1::PublicPoses>();
+        }
+        EXPECT_TRUE(block) << "reader " << k << ": no bundle within " << kPrompt.count() << " ms";
+    }
 }
 
 TEST(SolverActor, SilentNeighbourDoesNotStopTheOthers) {

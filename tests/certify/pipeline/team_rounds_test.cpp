@@ -2,8 +2,11 @@
 // delivered at once reach the published optimum in few rounds, and agree on every decision.
 #include "certify/pipeline/team_rounds.h"
 
+#include "certify/pipeline/team_rounds_in_memory.h"
+
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -17,63 +20,18 @@ constexpr double kSmallGridOptimum = 1025.39802075;  // data/g2o/README.md (SE-S
 constexpr double kRelCostTol = 1e-6;
 constexpr int kMaxRounds = 200;
 
-struct Robot {
-    SolverState state;
-    TeamRounds rounds;
-    bool converged = false;
-};
-
-// Runs the team until every robot converged or nothing moves; returns the team's f.
-double RunTeam(const std::vector<slam::RobotGraph>& graphs, TeamRoundsConfig config,
-               std::vector<Robot>* team) {
-    std::vector<int> ids;
-    for (const auto& g : graphs) ids.push_back(g.robot);
-    SolverConfig sc;
-    sc.odometry_edges = false;
-    for (const auto& g : graphs) {
-        SolverState state(g.robot, sc);
-        for (size_t k = 0; k < g.initial.size(); ++k) state.AddKeyframe(int(k), g.initial[k]);
-        for (const auto& e : g.intra) state.AddLoop(e);
-        for (const auto& e : g.inter) state.AddLoop(e);
-        for (const auto& e : g.shared) state.AddLoop(e);
-        state.LocalChordalStart();
-        const auto nbrs = state.Neighbours();
-        team->push_back(Robot{std::move(state), TeamRounds(g.robot, ids, nbrs, config)});
-    }
-    for (bool moved = true; moved;) {
-        moved = false;
-        for (auto& me : *team) {
-            for (RoundAction a = me.rounds.Next();
-                 a.kind != RoundAction::Kind::kWait && a.kind != RoundAction::Kind::kGaveUp &&
-                 !me.converged;
-                 a = me.rounds.Next()) {
-                moved = true;
-                me.state.SetNeighbourPoses(a.neighbours);
-                if (a.kind == RoundAction::Kind::kConverged) {
-                    me.state.SetOwnBlock(a.own_start);
-                    me.converged = true;
-                } else if (a.kind == RoundAction::Kind::kEvaluate) {
-                    const auto e = me.state.Evaluate();
-                    for (auto& peer : *team) {
-                        peer.rounds.OnSums(me.state.robot(), a.round, e.cost, e.grad_norm);
-                    }
-                } else {
-                    if (a.kind == RoundAction::Kind::kAlign) {
-                        me.state.AlignToLowerNeighbour();
-                    } else {
-                        me.state.SetOwnBlock(a.own_start);
-                        me.state.StepTo(a.block_tol);
-                    }
-                    me.rounds.SweepDone(a.round, me.state.FullBlock(0).blocks);
-                    const PoseBlocks poses = me.state.PublicPoses(0);
-                    for (auto& peer : *team) peer.rounds.OnPoses(me.state.robot(), a.round, poses);
-                }
-            }
-        }
-    }
+// The team's f at the rounds' last iterate.
+double Cost(InMemoryTeam* team) {
     double f = 0.0;
-    for (auto& me : *team) f += me.state.Evaluate().cost;
+    for (auto& me : team->robots) f += me.Evaluate().cost;
     return f;
+}
+
+// The team's Riemannian gradient norm at the rounds' last iterate (from the block gradients).
+double GradientNorm(InMemoryTeam* team) {
+    double sq = 0.0;
+    for (auto& me : team->robots) sq += std::pow(me.Evaluate().grad_norm, 2);
+    return std::sqrt(sq);
 }
 
 std::vector<slam::RobotGraph> SmallGrid(int robots) {
@@ -83,33 +41,59 @@ std::vector<slam::RobotGraph> SmallGrid(int robots) {
 }
 
 TEST(TeamRounds, ThreeRobotsReachTheOptimumAndAgree) {
-    std::vector<Robot> team;
-    const double f = RunTeam(SmallGrid(3), TeamRoundsConfig{}, &team);
-    for (const auto& me : team) {
-        EXPECT_TRUE(me.converged) << "robot " << me.state.robot();
-        EXPECT_EQ(me.rounds.Rounds(), team.front().rounds.Rounds());
-        EXPECT_EQ(me.rounds.Restarts(), team.front().rounds.Restarts());
+    InMemoryTeam team = RunTeamRoundsInMemory(SmallGrid(3), SolverConfig{}, TeamRoundsConfig{});
+    for (size_t i = 0; i < team.robots.size(); ++i) {
+        EXPECT_TRUE(team.converged[i]) << "robot " << i;
+        EXPECT_EQ(team.rounds[i], team.rounds.front());
+        EXPECT_EQ(team.restarts[i], team.restarts.front());
     }
-    EXPECT_NEAR(f, kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
-    EXPECT_LE(team.front().rounds.Rounds(), std::uint64_t{kMaxRounds});
+    EXPECT_NEAR(Cost(&team), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
+    EXPECT_LE(team.rounds.front(), std::uint64_t{kMaxRounds});
 }
 
 TEST(TeamRounds, AccelerationNeedsFewerRoundsThanPlainSweeps) {
-    std::vector<Robot> fast, plain;
     TeamRoundsConfig off;
     off.acceleration = false;
-    const double f_fast = RunTeam(SmallGrid(5), TeamRoundsConfig{}, &fast);
-    const double f_plain = RunTeam(SmallGrid(5), off, &plain);
-    EXPECT_NEAR(f_fast, kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
-    EXPECT_NEAR(f_plain, kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
-    EXPECT_LT(fast.front().rounds.Rounds(), plain.front().rounds.Rounds());
-    EXPECT_EQ(plain.front().rounds.Restarts(), 0);
+    InMemoryTeam fast = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, TeamRoundsConfig{});
+    InMemoryTeam plain = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, off);
+    EXPECT_TRUE(fast.AllConverged());
+    EXPECT_TRUE(plain.AllConverged());
+    EXPECT_NEAR(Cost(&fast), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
+    EXPECT_NEAR(Cost(&plain), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
+    EXPECT_LT(fast.rounds.front(), plain.rounds.front());
+    EXPECT_EQ(plain.restarts.front(), 0);
+}
+
+TEST(TeamRounds, RefinementGoesBelowTheFirstOrderToleranceForAtMostItsRounds) {
+    constexpr int kBudget = 5;
+    TeamRoundsConfig none, unreachable, config;
+    none.refine_rounds = 0;
+    unreachable.refine_rel_grad_tol = 1e-30;
+    unreachable.refine_rounds = kBudget;
+    InMemoryTeam first_order = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, none);
+    InMemoryTeam capped = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, unreachable);
+    InMemoryTeam refined = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, config);
+    for (const auto* team : {&first_order, &capped, &refined}) EXPECT_TRUE(team->AllConverged());
+    const double f = Cost(&refined);
+    EXPECT_LE(GradientNorm(&first_order), none.rel_grad_tol * f);
+    EXPECT_GT(GradientNorm(&first_order), config.refine_rel_grad_tol * f);
+    EXPECT_EQ(capped.rounds.front(), first_order.rounds.front() + kBudget);
+    EXPECT_LE(GradientNorm(&refined), config.refine_rel_grad_tol * f);
+    EXPECT_GT(refined.rounds.front(), first_order.rounds.front());
+    EXPECT_LE(refined.rounds.front(),
+              first_order.rounds.front() + static_cast<std::uint64_t>(config.refine_rounds));
 }
 
 TEST(TeamRounds, RefusesABadConfiguration) {
     TeamRoundsConfig bad;
     bad.max_rounds = 0;
     EXPECT_THROW(TeamRounds(0, {0, 1}, {1}, bad), std::invalid_argument);
+    TeamRoundsConfig loose_refinement;
+    loose_refinement.refine_rel_grad_tol = 2.0 * loose_refinement.rel_grad_tol;
+    EXPECT_THROW(TeamRounds(0, {0, 1}, {1}, loose_refinement), std::invalid_argument);
+    TeamRoundsConfig negative_budget;
+    negative_budget.refine_rounds = -1;
+    EXPECT_THROW(TeamRounds(0, {0, 1}, {1}, negative_budget), std::invalid_argument);
 }
 
 }  // namespace

@@ -1,0 +1,92 @@
+// Synchronous RBCD++ rounds of a team in one thread: the solver actor's actions (SyncAction),
+// every robot's poses and sums handed to every other robot at once.
+#include "certify/pipeline/team_rounds_in_memory.h"
+
+#include <algorithm>
+#include <utility>
+
+namespace certislam::certify {
+
+InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, SolverConfig solver,
+                                   const TeamRoundsConfig& rounds) {
+    solver.odometry_edges = false;  // every edge comes from the graph, as loops
+    std::vector<int> ids;
+    ids.reserve(graphs.size());
+    for (const auto& g : graphs) ids.push_back(g.robot);
+    InMemoryTeam team;
+    std::vector<TeamRounds> schedule;
+    for (const auto& g : graphs) {
+        SolverState state(g.robot, solver);
+        for (size_t k = 0; k < g.initial.size(); ++k) state.AddKeyframe(int(k), g.initial[k]);
+        for (const auto* edges : {&g.intra, &g.inter, &g.shared}) {
+            for (const auto& e : *edges) state.AddLoop(e);
+        }
+        state.LocalChordalStart();
+        const auto nbrs = state.Neighbours();
+        schedule.emplace_back(g.robot, ids, std::set<int>(nbrs.begin(), nbrs.end()), rounds);
+        team.robots.push_back(std::move(state));
+    }
+    using K = RoundAction::Kind;
+    std::vector<K> ended(graphs.size(), K::kWait);
+    for (bool moved = true; moved;) {
+        moved = false;
+        for (size_t i = 0; i < graphs.size(); ++i) {
+            SolverState& me = team.robots[i];
+            for (RoundAction a = schedule[i].Next(); a.kind != K::kWait && ended[i] == K::kWait;
+                 a = schedule[i].Next()) {
+                moved = true;
+                if (a.kind == K::kGaveUp) {
+                    ended[i] = a.kind;
+                    break;
+                }
+                me.SetNeighbourPoses(a.neighbours);
+                if (a.kind == K::kConverged) {
+                    me.SetOwnBlock(a.own_start);
+                    ended[i] = a.kind;
+                } else if (a.kind == K::kEvaluate) {
+                    const auto e = me.Evaluate();
+                    for (auto& peer : schedule)
+                        peer.OnSums(me.robot(), a.round, e.cost, e.grad_norm);
+                } else {
+                    if (a.kind == K::kAlign) {
+                        me.AlignToLowerNeighbour();
+                    } else {
+                        me.SetOwnBlock(a.own_start);
+                        me.StepTo(a.block_tol);
+                    }
+                    schedule[i].SweepDone(a.round, me.FullBlock(0).blocks);
+                    const PoseBlocks poses = me.PublicPoses(0);
+                    for (auto& peer : schedule) peer.OnPoses(me.robot(), a.round, poses);
+                }
+            }
+        }
+    }
+    for (size_t i = 0; i < graphs.size(); ++i) {
+        team.converged.push_back(ended[i] == K::kConverged);
+        team.rounds.push_back(schedule[i].Rounds());
+        team.restarts.push_back(schedule[i].Restarts());
+    }
+    return team;
+}
+
+bool InMemoryTeam::AllConverged() const {
+    return std::all_of(converged.begin(), converged.end(), [](bool c) { return c; });
+}
+
+Eigen::MatrixXd InMemoryTeam::X() const {
+    std::vector<Eigen::MatrixXd> blocks;
+    Eigen::Index cols = 0;
+    for (const auto& robot : robots) {
+        blocks.push_back(robot.FullBlock(0).blocks);
+        cols += blocks.back().cols();
+    }
+    Eigen::MatrixXd X(blocks.empty() ? 0 : blocks.front().rows(), cols);
+    cols = 0;
+    for (const auto& b : blocks) {
+        X.middleCols(cols, b.cols()) = b;
+        cols += b.cols();
+    }
+    return X;
+}
+
+}  // namespace certislam::certify

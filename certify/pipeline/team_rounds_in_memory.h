@@ -1,0 +1,33 @@
+// A team's synchronous RBCD++ rounds with every message delivered at once: what the solver
+// actors of `solve --distributed` compute, without sockets (tests, benchmarks).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "certify/pipeline/solver_state.h"
+#include "certify/pipeline/team_rounds.h"
+#include "slam/core/graph_split.h"
+
+namespace certislam::certify {
+
+/// Result of RunTeamRoundsInMemory.
+struct InMemoryTeam {
+    std::vector<SolverState> robots;    ///< one per graph, in the graphs' order, at the last round
+    std::vector<bool> converged;        ///< per robot: reached kConverged (false: gave up)
+    std::vector<std::uint64_t> rounds;  ///< per robot: rounds swept
+    std::vector<int> restarts;          ///< per robot: adaptive restarts
+
+    /// True when every robot converged.
+    bool AllConverged() const;
+    /// The team's X: every robot's block in the robots' order (r x (d+1)n).
+    Eigen::MatrixXd X() const;
+};
+
+/// Runs the robots of a split graph (slam::SplitGraph; every edge arrives as a loop, as a pose
+/// graph's robot receives it) through TeamRounds until every robot converged or gave up.
+InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, SolverConfig solver,
+                                   const TeamRoundsConfig& rounds);
+
+}  // namespace certislam::certify

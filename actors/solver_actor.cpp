@@ -101,8 +101,10 @@ void SolverActor::Subscribe() {
         const double refined =
             std::min(1.0, config_.rounds.refine_rel_grad_tol / config_.solver.rbcd.rel_grad_tol);
         if (report->verdict() == v1::CERTIFICATE_VERDICT_INCONCLUSIVE && report->has_bound() &&
-            tolerance_scale_ > refined) {
+            !refined_ && tolerance_scale_ > refined) {
             tolerance_scale_ = refined;
+            refined_ = true;
+            refine_steps_left_ = kRefineStepsPerRound * config_.rounds.refine_rounds;
             work_ = true;
         }
         UpdateSnapshot();
@@ -193,7 +195,8 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
 }
 
 void SolverActor::Changed() {
-    tolerance_scale_ = 1.0;          // a new graph: the configured tolerance again
+    tolerance_scale_ = 1.0;  // a new graph: the configured tolerance again
+    refined_ = false;
     if (restored_) report_.reset();  // the checkpoint's report is of the graph before this change
     restored_ = false;
     work_ = true;
@@ -232,6 +235,7 @@ void SolverActor::Tick() {
     local_ok_ = step.status == certify::SolverStepResult::Status::kLocalOk;
     // Converged against the last poses heard: wait for news instead of spinning.
     work_ = !local_ok_ && step.status != certify::SolverStepResult::Status::kStuck;
+    EndRefinementWhenSpent(step);
     // A step that moved the block is published (within publish_period) even when it ends below
     // tolerance: otherwise the team's last refinements travel only with the heartbeat.
     if (!local_ok_ || step.moved) bundle_dirty_ = true;
@@ -243,6 +247,18 @@ void SolverActor::Tick() {
     const auto now = std::chrono::steady_clock::now();
     if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
     UpdateSnapshot();
+}
+
+void SolverActor::EndRefinementWhenSpent(const certify::SolverStepResult& step) {
+    if (tolerance_scale_ >= 1.0) return;
+    // A gradient that cannot reach the refined tolerance (round-off, stale neighbours) must not
+    // keep the robot from ever sending its bundle: like the rounds' refine_rounds, the refinement
+    // has a budget, and then the configured tolerance holds again (the certificate re-checks).
+    if (--refine_steps_left_ > 0 && step.status != certify::SolverStepResult::Status::kStuck) {
+        return;
+    }
+    tolerance_scale_ = 1.0;
+    work_ = true;
 }
 
 void SolverActor::Publish() {

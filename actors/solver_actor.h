@@ -153,6 +153,12 @@ class SolverActor final : public NodeActor {
     /// Multiplies the asynchronous steps' tolerance: rounds.refine_rel_grad_tol / rel_grad_tol
     /// after an inconclusive report whose bound was too loose, back to 1 when the graph changes
     double tolerance_scale_ = 1.0;
+    bool refined_ = false;       ///< this graph's refinement was tried (once per graph)
+    int refine_steps_left_ = 0;  ///< steps of the refinement's budget still to take
+    /// A refinement gets as many asynchronous steps per round of the rounds' refine_rounds.
+    static constexpr int kRefineStepsPerRound = 5;
+    /// Back to the configured tolerance once the refinement's budget is spent or a step is stuck.
+    void EndRefinementWhenSpent(const certify::SolverStepResult& step);
     std::optional<v1::CertificateReport> report_;
     std::chrono::steady_clock::time_point changed_ = std::chrono::steady_clock::now();
 

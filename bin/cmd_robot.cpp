@@ -30,15 +30,8 @@ namespace {
 int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
                       const TeamConfig& config, int id, double timeout_s, bool json) {
     const auto graphs = LoadPoseGraphSource(config.path, config.source, config.robots);
-    const actors::RobotNodeConfig own = NodeConfigFor(config, id);
-    actors::PoseGraphNodeConfig node_config;
-    node_config.solver = own.solver;
-    // The whole graph is known: RBCD++ rounds from the start, to solve --distributed's tolerance.
-    node_config.solver.synchronous = true;
-    node_config.solver.async_until_final = false;
-    node_config.solver.rounds = actors::PoseGraphNodeConfig{}.solver.rounds;
-    node_config.certifier = own.certifier;
-    node_config.quiet = own.quiet;
+    const actors::PoseGraphNodeConfig node_config =
+        PoseGraphNodeConfigFrom(NodeConfigFor(config, id));
     const auto start = std::chrono::steady_clock::now();
     actors::PoseGraphNode node(context, wiring, graphs.at(static_cast<size_t>(id)), node_config);
     node.Start();

@@ -19,14 +19,7 @@ namespace {
 /// source.kind pose_graph: each robot its block of the graph, solver and certifier (no front end).
 int RunPoseGraph(const TeamConfig& config, double timeout_s, bool json) {
     const auto graphs = LoadPoseGraphSource(config.path, config.source, config.robots);
-    actors::PoseGraphNodeConfig node;
-    node.solver = config.node.solver;
-    // The whole graph is known: RBCD++ rounds from the start, to solve --distributed's tolerance.
-    node.solver.synchronous = true;
-    node.solver.async_until_final = false;
-    node.solver.rounds = actors::PoseGraphNodeConfig{}.solver.rounds;
-    node.certifier = config.node.certifier;
-    node.quiet = config.node.quiet;
+    const actors::PoseGraphNodeConfig node = PoseGraphNodeConfigFrom(config.node);
     const auto result =
         actors::RunPoseGraphTeam(graphs, node, std::chrono::duration<double>(timeout_s));
     nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));

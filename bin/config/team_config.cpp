@@ -138,6 +138,17 @@ actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot) {
     return node;
 }
 
+actors::PoseGraphNodeConfig PoseGraphNodeConfigFrom(const actors::RobotNodeConfig& node) {
+    actors::PoseGraphNodeConfig pose_graph;
+    pose_graph.solver = node.solver;
+    pose_graph.solver.synchronous = true;
+    pose_graph.solver.async_until_final = false;
+    pose_graph.solver.rounds = actors::PoseGraphNodeConfig{}.solver.rounds;
+    pose_graph.certifier = node.certifier;
+    pose_graph.quiet = node.quiet;
+    return pose_graph;
+}
+
 actors::TeamWiring NetworkWiring(const TeamConfig& config, int robot) {
     actors::TeamWiring wiring;
     wiring.robot = robot;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "actors/durable_log.h"
+#include "actors/pose_graph_node.h"
 #include "actors/robot_node.h"
 #include "actors/wiring.h"
 #include "bin/config/team_config_sources.h"
@@ -41,6 +42,10 @@ struct TeamConfig {
 /// mission's identity (a stale or corrupt log is refused or moved aside by log_stale; throws
 /// std::runtime_error naming the log).
 actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot);
+
+/// A pose-graph robot's settings from the node's: the whole graph is known, so RBCD++ rounds run
+/// from the start, to solve --distributed's tolerance (not the keyframe robots' asynchronous mode).
+actors::PoseGraphNodeConfig PoseGraphNodeConfigFrom(const actors::RobotNodeConfig& node);
 
 /// Reads a configuration file (YAML; JSON is YAML too) against TeamConfigKeys(). Throws
 /// std::runtime_error naming the file, the line and the key path.

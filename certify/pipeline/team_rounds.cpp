@@ -175,13 +175,15 @@ void TeamRounds::Decide() {
         gamma_ = plain_ ? 1.0 : gamma_next_;
         const double grad = std::sqrt(grad_sq), scale = std::max(1.0, f);
         if (!within_ && grad <= config_.rel_grad_tol * scale) within_ = current_;
-        // Refined, or out of refinement rounds (the rounds' own budget included).
+        // Refined, or out of refinement rounds (the rounds' own budget included) at a point
+        // still within rel_grad_tol: an accepted round lowers f, not always the gradient.
         const auto last = static_cast<std::uint64_t>(config_.max_rounds);
-        converged_ =
-            grad <= config_.refine_rel_grad_tol * scale ||
-            (within_ &&
-             current_ >=
-                 std::min(*within_ + static_cast<std::uint64_t>(config_.refine_rounds), last));
+        const bool spent =
+            within_ &&
+            current_ >=
+                std::min(*within_ + static_cast<std::uint64_t>(config_.refine_rounds), last);
+        converged_ = grad <= config_.refine_rel_grad_tol * scale ||
+                     (spent && grad <= config_.rel_grad_tol * scale);
     } else {
         ++restarts_;
         gamma_ = 1.0;

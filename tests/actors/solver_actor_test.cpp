@@ -107,48 +107,74 @@ TEST(SolverActor, CountedEndOfLoopsWaitsForTheLoopsItCounts) {
     for (auto& s : solvers) EXPECT_EQ(s->Snapshot().inter_robot_loops, int(ends.size()));
 }
 
-// A report whose S + eta D was PSD but whose bound was too loose (inconclusive with a bound):
-// the bound is first order in the gradient, so the asynchronous solvers step on to the rounds'
-// refined tolerance, which moves their blocks and opens a new check.
-TEST(SolverActor, InconclusiveBoundTightensTheAsynchronousTolerance) {
-    constexpr double kLooseTolerance = 1e-3;  // relative: RBCD stops just below it
+// Two asynchronous solvers converged at a loose tolerance; then a report whose S + eta D was PSD
+// but whose bound was too loose (inconclusive with a bound). `refine_rel_grad_tol`: the rounds'
+// refined tolerance the solvers step on to.
+struct LooseBoundTeam {
+    static constexpr double kLooseTolerance = 1e-3;  // relative: RBCD stops just below it
     TwoRobotProblem problem = MakeTwoRobotProblem(30, 4, 5);
-    problem.config.rbcd.rel_grad_tol = kLooseTolerance;
-    const slam::PoseGraph graph =
-        certify::BuildJointGraph(problem.odometry, problem.loops, problem.config.noise);
-    const double f = certify::SolveCertifiedJoint(graph, certify::MissionSolverConfig{}).cost;
-    const double tightened_tol = SolverActorConfig{}.rounds.refine_rel_grad_tol * std::max(1.0, f);
+    double f = 0.0;
     zmq::context_t context;
-    const std::vector<int> robots{0, 1};
-    transport::Endpoint anchor(context, ServerConfig(InprocWiring(0, robots), Edge::kCertify));
+    std::unique_ptr<transport::Endpoint> anchor;  ///< the certifier's report stream
     std::vector<std::unique_ptr<SolverActor>> solvers;
-    for (int r : robots) {
-        solvers.push_back(
-            std::make_unique<SolverActor>(context, InprocWiring(r, robots), Config(problem)));
-        solvers.back()->Start();
+
+    explicit LooseBoundTeam(double refine_rel_grad_tol) {
+        problem.config.rbcd.rel_grad_tol = kLooseTolerance;
+        const slam::PoseGraph graph =
+            certify::BuildJointGraph(problem.odometry, problem.loops, problem.config.noise);
+        f = certify::SolveCertifiedJoint(graph, certify::MissionSolverConfig{}).cost;
+        const std::vector<int> robots{0, 1};
+        anchor = std::make_unique<transport::Endpoint>(
+            context, ServerConfig(InprocWiring(0, robots), Edge::kCertify));
+        SolverActorConfig config = Config(problem);
+        config.rounds.refine_rel_grad_tol = refine_rel_grad_tol;
+        for (int r : robots) {
+            solvers.push_back(
+                std::make_unique<SolverActor>(context, InprocWiring(r, robots), config));
+            solvers.back()->Start();
+        }
+        EXPECT_TRUE(anchor->WaitForSubscribers(2, std::chrono::seconds(5)));
+        Feeder feeder(context, robots, 2);
+        feeder.Feed(problem);
+        EXPECT_TRUE(WaitFor([&] { return Below(kLooseTolerance * std::max(1.0, f)); }));
+        std::this_thread::sleep_for(std::chrono::milliseconds(300));  // settled on each other's
+        steps_before = solvers[0]->Snapshot().steps;
+        v1::CertificateReport report;
+        *report.mutable_header() = MakeHeader(0, 1, 0);
+        report.set_verdict(v1::CERTIFICATE_VERDICT_INCONCLUSIVE);
+        report.set_has_bound(true);
+        EXPECT_EQ(anchor->Send(transport::Pack(report)), transport::SendStatus::kSent);
     }
-    ASSERT_TRUE(anchor.WaitForSubscribers(2, std::chrono::seconds(5)));
-    Feeder feeder(context, robots, 2);
-    feeder.Feed(problem);
-    const auto below = [&](double tol) {
+    bool Below(double tol) const {
         for (const auto& s : solvers) {
             const SolverSnapshot snap = s->Snapshot();
             if (!snap.final || !snap.local_ok || !(snap.grad_norm <= tol)) return false;
         }
         return true;
-    };
-    ASSERT_TRUE(WaitFor([&] { return below(kLooseTolerance * std::max(1.0, f)); }));
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));  // settled on each other's poses
-    ASSERT_FALSE(below(tightened_tol)) << "converged far below the loose tolerance by itself";
+    }
+    std::uint64_t steps_before = 0;
+};
 
-    v1::CertificateReport report;
-    *report.mutable_header() = MakeHeader(0, 1, 0);
-    report.set_verdict(v1::CERTIFICATE_VERDICT_INCONCLUSIVE);
-    report.set_has_bound(true);
-    ASSERT_EQ(anchor.Send(transport::Pack(report)), transport::SendStatus::kSent);
-    EXPECT_TRUE(WaitFor([&] { return below(tightened_tol); }))
-        << "block gradients " << solvers[0]->Snapshot().grad_norm << ", "
-        << solvers[1]->Snapshot().grad_norm << " above " << tightened_tol;
+// The bound is first order in the gradient: the asynchronous solvers step on to the rounds'
+// refined tolerance, which moves their blocks and opens a new check.
+TEST(SolverActor, InconclusiveBoundTightensTheAsynchronousTolerance) {
+    const LooseBoundTeam team(SolverActorConfig{}.rounds.refine_rel_grad_tol);
+    const double tightened_tol =
+        SolverActorConfig{}.rounds.refine_rel_grad_tol * std::max(1.0, team.f);
+    EXPECT_TRUE(WaitFor([&] { return team.Below(tightened_tol); }))
+        << "block gradients " << team.solvers[0]->Snapshot().grad_norm << ", "
+        << team.solvers[1]->Snapshot().grad_norm << " above " << tightened_tol;
+}
+
+// A refined tolerance the gradient cannot reach (round-off) has a budget of steps: then the
+// solvers are converged at their configured tolerance again, and send their bundles.
+TEST(SolverActor, UnreachableRefinementEndsAtTheConfiguredTolerance) {
+    const LooseBoundTeam team(1e-30);
+    ASSERT_TRUE(WaitFor([&] { return team.solvers[0]->Snapshot().steps > team.steps_before; }))
+        << "the report started no refinement";
+    EXPECT_TRUE(WaitFor([&] {
+        return team.Below(LooseBoundTeam::kLooseTolerance * std::max(1.0, team.f));
+    })) << "stuck refining";
 }
 
 // A certifier begins reading a neighbour's bundles when a round names it: the converged solver

@@ -77,11 +77,41 @@ TEST(TeamRounds, RefinementGoesBelowTheFirstOrderToleranceForAtMostItsRounds) {
     const double f = Cost(&refined);
     EXPECT_LE(GradientNorm(&first_order), none.rel_grad_tol * f);
     EXPECT_GT(GradientNorm(&first_order), config.refine_rel_grad_tol * f);
-    EXPECT_EQ(capped.rounds.front(), first_order.rounds.front() + kBudget);
+    EXPECT_GE(capped.rounds.front(), first_order.rounds.front() + kBudget);
+    EXPECT_LE(GradientNorm(&capped), unreachable.rel_grad_tol * Cost(&capped));
     EXPECT_LE(GradientNorm(&refined), config.refine_rel_grad_tol * f);
     EXPECT_GT(refined.rounds.front(), first_order.rounds.front());
     EXPECT_LE(refined.rounds.front(),
               first_order.rounds.front() + static_cast<std::uint64_t>(config.refine_rounds));
+}
+
+// Scripted sums of a one-robot team: every round lowers f, but the gradient, within rel_grad_tol
+// at round 1, rises again at rounds 2-5; the spent refinement budget alone must not end the
+// rounds at such a point (the certificate's bound grows with the gradient).
+TEST(TeamRounds, SpentRefinementEndsOnlyWithinTheFirstOrderTolerance) {
+    TeamRoundsConfig config;
+    config.refine_rounds = 2;
+    config.acceleration = false;
+    TeamRounds rounds(0, {0}, {}, config);
+    const Eigen::MatrixXd block = Eigen::MatrixXd::Zero(3, 4);
+    const auto cost = [](std::uint64_t r) { return 100.0 - static_cast<double>(r); };
+    const auto grad = [&](std::uint64_t r) {
+        return (r == 1 || r >= 6 ? 0.1 : 100.0) * config.rel_grad_tol * cost(r);
+    };
+    std::uint64_t converged_at = 0;
+    for (int step = 0; step < 100 && converged_at == 0; ++step) {
+        const RoundAction a = rounds.Next();
+        using K = RoundAction::Kind;
+        if (a.kind == K::kAlign || a.kind == K::kSweep) {
+            rounds.SweepDone(a.round, block);
+        } else if (a.kind == K::kEvaluate) {
+            rounds.OnSums(0, a.round, cost(a.round), grad(a.round));
+        } else {
+            ASSERT_EQ(a.kind, K::kConverged) << "step " << step;
+            converged_at = a.round;
+        }
+    }
+    EXPECT_EQ(converged_at, 6u);
 }
 
 TEST(TeamRounds, RefusesABadConfiguration) {

@@ -74,6 +74,18 @@ TEST_P(ScenarioFloors, LocalMinimumRefusedAndCertifiedBeatsThePapersImprovements
     }
 }
 
+// Issue 17's swarm: 8 robots meeting pairwise at different times, every one certified by the
+// actor graph in one process (8 processes: deploy/configs/swarm8.json, BENCHMARKS.md).
+TEST(Swarm, EveryRobotCertifiedInOneProcess) {
+    const nlohmann::json j = RunDemo("swarm");
+    ASSERT_FALSE(j.is_null());
+    EXPECT_EQ(j["certified_source"].get<std::string>(), "actor graph");
+    EXPECT_EQ(j["verdict"].get<std::string>(), "certified");
+    EXPECT_TRUE(j["actor_graph"]["certified"].get<bool>());
+    ASSERT_EQ(j["robots"].size(), 8u);
+    for (const auto& robot : j["robots"]) EXPECT_GT(robot["keyframes"].get<int>(), 0);
+}
+
 INSTANTIATE_TEST_SUITE_P(Demo, ScenarioFloors, ::testing::Values("default", "large-drift"),
                          certislam::testing::DashesToUnderscores());
 

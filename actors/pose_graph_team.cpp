@@ -6,6 +6,8 @@
 #include <memory>
 #include <thread>
 
+#include "transport/context.h"
+
 namespace certislam::actors {
 namespace {
 
@@ -54,6 +56,7 @@ PoseGraphTeamResult RunPoseGraphTeam(const std::vector<slam::RobotGraph>& graphs
     robots.reserve(graphs.size());
     for (const auto& g : graphs) robots.push_back(g.robot);
     zmq::context_t context;
+    transport::ReserveSockets(context, InprocTeamSockets(static_cast<int>(robots.size()), false));
     std::vector<std::unique_ptr<PoseGraphNode>> nodes;
     nodes.reserve(graphs.size());
     for (const auto& g : graphs) {

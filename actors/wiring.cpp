@@ -121,4 +121,9 @@ transport::EndpointConfig ClientConfig(const TeamWiring& wiring, Edge edge, int 
     return config;
 }
 
+int InprocTeamSockets(int robots, bool front_end) {
+    const int per_peer = front_end ? 8 : 4, own = front_end ? 64 : 32;
+    return per_peer * robots * robots + own * robots + 64;
+}
+
 }  // namespace certislam::actors

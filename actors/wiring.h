@@ -39,6 +39,11 @@ bool HasEdgeEverywhere(const TeamWiring& wiring, Edge edge);
 /// Addresses of an all-in-one-process team: inproc://certislam/r<k>/<edge>.
 TeamWiring InprocWiring(int robot, const std::vector<int>& robots);
 
+/// Sockets an all-in-one-process team of `robots` may open, an upper bound: each robot's actors'
+/// endpoints plus a subscription per peer and edge (so quadratic in the team); `front_end`: the
+/// keyframe robots' ingest, descriptor, matcher and mapper too, not only solver and certifier.
+int InprocTeamSockets(int robots, bool front_end);
+
 /// Publisher (or router for kClouds) of `edge` on this robot: binds its address.
 transport::EndpointConfig ServerConfig(const TeamWiring& wiring, Edge edge,
                                        transport::Role role = transport::Role::kPublisher);

@@ -12,6 +12,7 @@
 #include "bin/progress.h"
 #include "bin/solve_distributed.h"
 #include "bin/stop_within.h"
+#include "transport/context.h"
 
 namespace certislam::bin {
 namespace {
@@ -47,6 +48,8 @@ int RunTeam(const TeamConfig& config, const RunOptions& o,
             std::chrono::steady_clock::time_point start) {
     const TeamSource source(config.source, config.robots);
     zmq::context_t context;
+    transport::ReserveSockets(
+        context, actors::InprocTeamSockets(static_cast<int>(config.robots.size()), true));
     std::vector<std::unique_ptr<actors::RobotNode>> nodes;
     std::vector<actors::RobotNodeConfig> node_configs;  // NodeConfigFor checks the logs: once
     for (int r : config.robots) {

@@ -10,6 +10,7 @@
 #include "actors/robot_node.h"
 #include "actors/wiring.h"
 #include "bin/verdict.h"
+#include "transport/context.h"
 
 namespace certislam::bin {
 namespace {
@@ -103,6 +104,8 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
     }
     const actors::RobotNodeConfig config = DemoConfig(voxel_m, distributed_certificate);
     zmq::context_t context;
+    transport::ReserveSockets(context,
+                              actors::InprocTeamSockets(static_cast<int>(ids.size()), true));
     std::vector<std::unique_ptr<actors::RobotNode>> nodes;
     for (int r : ids) {
         auto next = std::make_shared<size_t>(0);

@@ -99,6 +99,18 @@ TEST(SolveDistributed, LobpcgByDefaultCertifiesTheInProcessOptimumInFewerExchang
     EXPECT_NE(alone.out.find("--eigensolver needs --distributed"), std::string::npos) << alone.out;
 }
 
+// An in-process team's sockets grow with the square of its size (a subscription per peer and
+// edge): 20 robots need more than libzmq's default 1023 sockets per context.
+TEST(SolveDistributed, TwentyRobotsInOneProcessOpenTheirSocketsAndCertify) {
+    const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --robots 1 --quiet");
+    const auto team =
+        Json("solve " + Data("smallGrid3D.g2o") + " --robots 20 --distributed --timeout 120");
+    ASSERT_FALSE(team.is_discarded());
+    EXPECT_EQ(team["robots"].get<int>(), 20);
+    EXPECT_EQ(team["verdict"], "certified");
+    EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), kRelCost);
+}
+
 TEST(SolveDistributed, GraphsItCannotSplitFailNamingTheFile) {
     for (const auto& [file, why] : {std::pair{"tinyGrid3D.g2o", "must be in [1, n = 9]"}}) {
         const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " solve " + Data(file) +

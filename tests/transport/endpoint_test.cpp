@@ -7,6 +7,7 @@
 
 #include "certislam/v1/control.pb.h"
 #include "tests/transport/test_util.h"
+#include "transport/context.h"
 
 namespace certislam::transport {
 namespace {
@@ -234,6 +235,28 @@ TEST(EndpointConfig, ValidateNamesTheFieldAndTheRule) {
     table.Add("keyframes/pub", Config(Role::kPublisher, "inproc://keyframes", true));
     EXPECT_EQ(table.Get("keyframes/pub").bind[0], "inproc://keyframes");
     EXPECT_THROW(table.Get("descriptors/sub"), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace certislam::transport
+
+namespace certislam::transport {
+namespace {
+
+// libzmq allows 1023 sockets per context by default; an in-process team of 20 robots opens more.
+TEST(ReserveSockets, AContextOpensMoreSocketsThanLibzmqsDefault) {
+    constexpr int kSockets = 1500;
+    const auto open_all = [](zmq::context_t& context) {
+        std::vector<zmq::socket_t> sockets;
+        sockets.reserve(kSockets);
+        for (int i = 0; i < kSockets; ++i) sockets.emplace_back(context, zmq::socket_type::pair);
+        return sockets.size();
+    };
+    zmq::context_t plain;
+    EXPECT_THROW(open_all(plain), zmq::error_t);
+    zmq::context_t reserved;
+    ReserveSockets(reserved, kSockets);
+    EXPECT_EQ(open_all(reserved), static_cast<size_t>(kSockets));
 }
 
 }  // namespace

@@ -47,14 +47,16 @@ bool CertifierActor::SettledSinceCertified() const {
     // The certified round proved f* >= tr(Lambda) - eta d n for its graph; that bound holds for
     // any X on the same graph, and a block within a small relative move of the certified one
     // changes f by at most 2 ||X Q|| ||dX|| + ||Q|| ||dX||^2: no new round is worth its bytes.
-    // A new edge, a withdrawn one, a new pose, a new rank (escape) or a larger move re-checks.
+    // A new edge, a withdrawn one, a new pose, a new rank (escape) or a larger move re-checks,
+    // and so does a new round session (a robot restarted: it heard no report of the old one).
     if (certified_bundles_.empty() || certified_bundles_.size() != bundles_.size()) return false;
     for (const auto& [robot, b] : bundles_) {
         const auto it = certified_bundles_.find(robot);
         if (it == certified_bundles_.end()) return false;
         const Bundle& c = it->second;
-        if (b.status.phase() != c.status.phase() || GraphDigest(b) != GraphDigest(c) ||
-            b.block.blocks.rows() != c.block.blocks.rows() ||
+        if (b.status.phase() != c.status.phase() ||
+            b.status.round_session() != c.status.round_session() ||
+            GraphDigest(b) != GraphDigest(c) || b.block.blocks.rows() != c.block.blocks.rows() ||
             b.block.blocks.cols() != c.block.blocks.cols()) {
             return false;
         }

@@ -38,6 +38,8 @@ std::uint64_t BundleDigest(const CertifierBundle& b) {
     std::uint64_t h = 14695981039346656037ull;
     const int phase = b.status.phase();
     Mix(&h, &phase, sizeof(phase));
+    const std::uint64_t session = b.status.round_session();
+    Mix(&h, &session, sizeof(session));
     for (const auto& id : b.block.ids) Mix(&h, &id, sizeof(id));
     const Eigen::Index dims[2] = {b.block.blocks.rows(), b.block.blocks.cols()};
     Mix(&h, dims, sizeof(dims));

@@ -25,7 +25,7 @@ struct CertifierBundle {
     std::uint64_t digest = 0;  ///< hash of the contents (equal for re-sent copies)
 };
 
-/// Hash of a bundle's contents: phase, pose ids, block and edges.
+/// Hash of a bundle's contents: phase, round session, pose ids, block and edges.
 std::uint64_t BundleDigest(const CertifierBundle& b);
 /// Hash of the graph a bundle describes: pose ids, rank and edges (not the block's values).
 std::uint64_t GraphDigest(const CertifierBundle& b);

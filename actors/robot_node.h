@@ -22,13 +22,13 @@ struct RobotNodeConfig {
     IngestConfig ingest;                   ///< pacing
     slam::ScanContextConfig scan_context;  ///< descriptor
     LoopMatcherConfig matcher;             ///< loop closures
-    /// RBCD of a growing graph: asynchronous updates throughout by default. synchronous = true
-    /// (`solver.mode: rounds`): asynchronous while keyframes and loops arrive, then synchronous
-    /// RBCD++ rounds once the graph is final, to the gradient the certificate needs (the back end
-    /// `solve --distributed` measures); a robot restarted after its team's rounds converged finds
-    /// no peer to sweep with, so it is not the default yet.
+    /// RBCD of a growing graph (`solver.mode: rounds`): asynchronous while keyframes and loops
+    /// arrive, then synchronous RBCD++ rounds once the graph is final, to the gradient the
+    /// certificate needs (the back end `solve --distributed` measures); a restarted robot's peers
+    /// rejoin it in a new round session. synchronous = false: asynchronous updates throughout.
     SolverActorConfig solver = [] {
         SolverActorConfig c;
+        c.synchronous = true;
         c.async_until_final = true;
         c.rounds.rel_grad_tol = 1e-9;
         return c;

@@ -2,6 +2,7 @@
 #include "actors/solver_actor.h"
 
 #include <algorithm>
+#include <random>
 #include <stdexcept>
 
 #include "actors/convert.h"
@@ -14,6 +15,10 @@ void SolverActorConfig::Validate() const {
     if (tick.count() <= 0 || heartbeat.count() <= 0 || bundle_period.count() <= 0) {
         throw std::invalid_argument("SolverActorConfig.tick/heartbeat/bundle_period: must be > 0");
     }
+    if (rounds_stall.count() <= 0) {
+        throw std::invalid_argument("SolverActorConfig.rounds_stall = " +
+                                    std::to_string(rounds_stall.count()) + " ms: must be > 0");
+    }
     if (publish_period.count() < 0) {
         throw std::invalid_argument("SolverActorConfig.publish_period = " +
                                     std::to_string(publish_period.count()) + " ms: must be >= 0");
@@ -24,6 +29,8 @@ SolverActor::SolverActor(zmq::context_t& context, const TeamWiring& wiring,
                          const SolverActorConfig& config)
     : NodeActor("solver", context, wiring), config_(config), state_(wiring.robot, config.solver) {
     config_.Validate();
+    std::random_device random;
+    incarnation_ = (std::uint64_t{random()} << 32 | random()) | 1;
 }
 
 SolverSnapshot SolverActor::Snapshot() const {
@@ -84,8 +91,10 @@ void SolverActor::Subscribe() {
     On(v1::SolverStatus::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto status = transport::Unpack<v1::SolverStatus>(m);
         if (!status || !IsValidStatus(*status)) return false;
+        const bool current = InSession(int(status->header().robot_id()), status->round_session(),
+                                       status->incarnation());
         if (status->team_round() > 0) {
-            if (config_.synchronous) OnRoundSums(*status);
+            if (config_.synchronous && current) OnRoundSums(*status);
             return true;
         }
         team_cost_[int(status->header().robot_id())] = status->cost();
@@ -177,8 +186,10 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
         }
         return true;
     }
+    const bool current =
+        InSession(poses->ids.front().robot, proto->round_session(), proto->incarnation());
     if (poses->team_round > 0) {  // synchronous rounds (solver_actor_rounds.cpp)
-        if (!config_.synchronous) return true;
+        if (!config_.synchronous || !current) return true;
         if (rounds_ && poses->staircase_level == rounds_level_) {
             rounds_->OnPoses(poses->ids.front().robot, poses->team_round - 1, *poses);
             work_ = true;
@@ -266,7 +277,12 @@ void SolverActor::Publish() {
     last_publish_ = std::chrono::steady_clock::now();
     auto poses = ToProto(state_.PublicPoses(steps_));
     *poses.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    StampSession(&poses);
     Send(*poses_out_, transport::Pack(poses), true);
+    SendStatus();
+}
+
+void SolverActor::SendStatus() {
     v1::SolverStatus status;
     *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     status.set_iteration(steps_);
@@ -276,6 +292,7 @@ void SolverActor::Publish() {
     status.set_cost(team_cost_[RobotId()]);
     status.set_gradient_norm(grad_norm_);
     status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
+    StampSession(&status);
     Send(*poses_out_, transport::Pack(status), true);
 }
 
@@ -288,6 +305,9 @@ void SolverActor::Heartbeat() {
         if (std::chrono::steady_clock::now() - last_round_progress_ >= config_.heartbeat) {
             for (const auto& p : last_round_poses_) Send(*poses_out_, transport::Pack(p), true);
             for (const auto& s : last_round_sums_) Send(*poses_out_, transport::Pack(s), true);
+            // Nothing sent in this session yet (a higher robot waits for its lower neighbours):
+            // a status tells the peers this solver's session and incarnation.
+            if (last_round_poses_.empty() && last_round_sums_.empty()) SendStatus();
         }
         return;
     }
@@ -318,6 +338,7 @@ void SolverActor::SendBundle() {
         status.set_rank_r(static_cast<std::uint32_t>(state_.Rank()));
         status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
         status.set_gradient_norm(grad_norm_);
+        StampSession(&status);  // a new session's result is certified again
         Send(*bundle_out_, transport::Pack(status), false);
         for (const auto& edge : state_.OwnEdges()) {
             auto proto = ToProto(edge);
@@ -340,8 +361,9 @@ void SolverActor::SendBundle() {
 }
 
 SolverActor::SnapshotKey SolverActor::KeyOfSnapshot() const {
-    return {steps_,           rounds_swept_, rounds_converged_,       rounds_gave_up_, local_ok_,
-            publish_pending_, IsFinal(),     state_.StaircaseLevel(), grad_norm_,      changed_};
+    return {steps_,    rounds_swept_,    round_session_, rounds_converged_,       rounds_gave_up_,
+            local_ok_, publish_pending_, IsFinal(),      state_.StaircaseLevel(), grad_norm_,
+            changed_};
 }
 
 void SolverActor::UpdateSnapshot() {
@@ -370,6 +392,7 @@ void SolverActor::UpdateSnapshot() {
     s.rounds_converged = rounds_converged_;
     s.rounds_gave_up = rounds_gave_up_;
     s.restored = restored_;
+    s.round_session = round_session_;
     std::lock_guard lock(snapshot_mutex_);
     snapshot_ = std::move(s);
 }

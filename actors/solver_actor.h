@@ -53,6 +53,9 @@ struct SolverActorConfig {
     /// the mapper and the peers), the rounds once it is final. false: no update before final.
     bool async_until_final = false;
     certify::TeamRoundsConfig rounds;  ///< the rounds
+    /// Rounds that made no progress this long (peers silent) give up: asynchronous updates take
+    /// over, as after rounds.max_rounds; > 0.
+    std::chrono::milliseconds rounds_stall{20000};
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -82,6 +85,9 @@ struct SolverSnapshot {
     /// The certified state came from the durable log's checkpoint (a restart after the team
     /// certified), not from a round of this run.
     bool restored = false;
+    /// The team's round session: 0 at the start, a new one each time a peer restarted and the
+    /// team's rounds began again from their iterates.
+    std::uint64_t round_session = 0;
 };
 
 /// One robot's RBCD solver.
@@ -113,13 +119,23 @@ class SolverActor final : public NodeActor {
     void SendRoundPoses(std::uint64_t round);
     void SendRoundSums(std::uint64_t round, double cost, double grad_norm);
     void OnRoundSums(const v1::SolverStatus& status);
+    /// Applies a peer message's round session and incarnation; true when it is of this session.
+    bool InSession(int robot, std::uint64_t session, std::uint64_t incarnation);
+    void NewSession(std::uint64_t session);
+    void StartRounds();
+    template <typename Proto>
+    void StampSession(Proto* proto) const {
+        proto->set_round_session(round_session_);
+        proto->set_incarnation(incarnation_);
+    }
+    void SendStatus();
     void Heartbeat();
     void SendBundle();
     void Publish();
     void UpdateSnapshot();
     /// What a snapshot shows that a tick can change (the rest changes with the graph, `changed_`).
-    using SnapshotKey = std::tuple<std::uint64_t, std::uint64_t, bool, bool, bool, bool, bool, int,
-                                   double, std::chrono::steady_clock::time_point>;
+    using SnapshotKey = std::tuple<std::uint64_t, std::uint64_t, std::uint64_t, bool, bool, bool,
+                                   bool, bool, int, double, std::chrono::steady_clock::time_point>;
     SnapshotKey KeyOfSnapshot() const;
     void Changed();
     void Replay();           ///< durable log: loops, and the last checkpoint kept for later
@@ -173,6 +189,12 @@ class SolverActor final : public NodeActor {
     std::vector<v1::PublicPoses> last_round_poses_;  ///< last two rounds', re-sent on a stall
     std::vector<v1::SolverStatus> last_round_sums_;  ///< last two rounds', re-sent on a stall
     std::chrono::steady_clock::time_point last_round_progress_{};
+    /// Round sessions: a peer that restarted lost its rounds, so the team opens a new session
+    /// (solver_actor_rounds.cpp); the sessions only grow, and every robot joins the highest.
+    std::uint64_t round_session_ = 0;
+    std::uint64_t incarnation_ = 0;  ///< random, non-zero (set at construction): tells a restart
+    std::map<int, std::uint64_t> incarnations_;  ///< robot -> incarnation last heard
+    bool chordal_started_ = false;  ///< the first rounds began from the chordal start; later: not
 
     std::unique_ptr<DurableLog> log_;
     std::optional<v1::SolverCheckpoint> checkpoint_;  ///< replayed, not restored yet

@@ -1,6 +1,7 @@
 // Solver actor, synchronous mode: RBCD++ rounds (certify/pipeline/team_rounds.h) driven by the
 // round-tagged public poses and sums of the other robots' solvers.
 #include <algorithm>
+#include <cstdio>
 
 #include "actors/convert.h"
 #include "actors/solver_actor.h"
@@ -35,6 +36,7 @@ void SolverActor::SendRoundPoses(std::uint64_t round) {
     poses.team_round = round + 1;
     auto proto = ToProto(poses);
     *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    StampSession(&proto);
     Send(*poses_out_, transport::Pack(proto), true);
     KeepLastTwo(&last_round_poses_, std::move(proto));
 }
@@ -50,6 +52,7 @@ void SolverActor::SendRoundSums(std::uint64_t round, double cost, double grad_no
     status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
     status.set_team_round(round + 1);
     status.set_staircase_level(static_cast<std::uint32_t>(state_.StaircaseLevel()));
+    StampSession(&status);
     Send(*poses_out_, transport::Pack(status), true);
     KeepLastTwo(&last_round_sums_, std::move(status));
 }
@@ -63,6 +66,50 @@ void SolverActor::OnRoundSums(const v1::SolverStatus& status) {
                     status.gradient_norm());
     work_ = true;
     AdvanceRounds();
+}
+
+// A known peer with a new incarnation restarted and lost its rounds: its old session can never
+// converge with it, so this robot opens the next session; a higher session heard is joined. Every
+// robot ends in the highest session, whose rounds start again from the robots' iterates.
+bool SolverActor::InSession(int robot, std::uint64_t session, std::uint64_t incarnation) {
+    const auto& team = Wiring().robots;
+    if (!config_.synchronous || robot == RobotId() ||
+        std::find(team.begin(), team.end(), robot) == team.end()) {
+        return true;
+    }
+    std::uint64_t& known = incarnations_[robot];
+    const bool restarted = known != 0 && incarnation != 0 && incarnation != known;
+    if (incarnation != 0) known = incarnation;
+    if (restarted) {
+        std::fprintf(stderr, "solver %d: robot %d restarted: round session %llu\n", RobotId(),
+                     robot, static_cast<unsigned long long>(std::max(session, round_session_) + 1));
+        NewSession(std::max(session, round_session_) + 1);
+    } else if (session > round_session_) {
+        NewSession(session);
+    }
+    return session == round_session_;
+}
+
+// Rejoins: the rounds of the old session (converged, stalled or given up) are dropped and begin
+// again from the current iterate (not the chordal start), and their result is certified again.
+void SolverActor::NewSession(std::uint64_t session) {
+    round_session_ = session;
+    early_poses_.clear();  // of older sessions
+    early_sums_.clear();
+    last_round_poses_.clear();
+    last_round_sums_.clear();
+    last_round_progress_ = std::chrono::steady_clock::now();
+    if (!rounds_ && !restored_ && !rounds_gave_up_) return;  // no rounds begun yet
+    if (rounds_) rounds_restarts_ += rounds_->Restarts();
+    rounds_.reset();
+    chordal_started_ = true;  // a restored block is kept too
+    rounds_converged_ = false;
+    rounds_gave_up_ = false;
+    restored_ = false;
+    report_.reset();  // of the iterate this robot leaves
+    local_ok_ = false;
+    work_ = true;
+    bundle_dirty_ = true;
 }
 
 // Performs one action of the rounds; false when the robot has to wait for messages.
@@ -139,32 +186,43 @@ void SolverActor::SyncTick() {
         rounds_converged_ = false;
         local_ok_ = false;
     }
-    if (!rounds_) {
-        const certify::TeamRoundsConfig& rc = config_.rounds;
-        const auto nbrs = state_.Neighbours();
-        rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()), rc);
-        rounds_level_ = state_.StaircaseLevel();
-        local_ok_ = false;  // an asynchronous phase's convergence says nothing of the rounds
-        if (rounds_level_ == 0) state_.LocalChordalStart();
-        for (const auto& p : early_poses_) {
-            if (p.staircase_level == rounds_level_ && !p.ids.empty() &&
-                p.blocks.rows() == state_.Rank()) {
-                rounds_->OnPoses(p.ids.front().robot, p.team_round - 1, p);
-            }
-        }
-        early_poses_.clear();
-        const auto sums = std::move(early_sums_);
-        early_sums_.clear();
-        for (const auto& s : sums) OnRoundSums(s);
-        last_round_progress_ = std::chrono::steady_clock::now();
-    }
+    if (!rounds_) StartRounds();
     AdvanceRounds();
+    const auto now = std::chrono::steady_clock::now();
+    if (!rounds_converged_ && !rounds_gave_up_ &&
+        now - last_round_progress_ >= config_.rounds_stall) {
+        std::fprintf(stderr, "solver %d: round session %llu stalled: asynchronous updates\n",
+                     RobotId(), static_cast<unsigned long long>(round_session_));
+        rounds_gave_up_ = true;  // Tick's asynchronous path from here, as after max_rounds
+        work_ = true;
+        return;
+    }
     work_ = false;
     if (publish_pending_) Publish();
-    const auto now = std::chrono::steady_clock::now();
     if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
     // A snapshot copies the trajectory and the edges: not on every tick of a converged team.
     if (KeyOfSnapshot() != snapshot_key_) UpdateSnapshot();
+}
+
+void SolverActor::StartRounds() {
+    const auto nbrs = state_.Neighbours();
+    rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()),
+                    config_.rounds);
+    rounds_level_ = state_.StaircaseLevel();
+    local_ok_ = false;  // an asynchronous phase's convergence says nothing of the rounds
+    if (rounds_level_ == 0 && !chordal_started_) state_.LocalChordalStart();
+    chordal_started_ = true;
+    for (const auto& p : early_poses_) {
+        if (p.staircase_level == rounds_level_ && !p.ids.empty() &&
+            p.blocks.rows() == state_.Rank()) {
+            rounds_->OnPoses(p.ids.front().robot, p.team_round - 1, p);
+        }
+    }
+    early_poses_.clear();
+    const auto sums = std::move(early_sums_);
+    early_sums_.clear();
+    for (const auto& s : sums) OnRoundSums(s);
+    last_round_progress_ = std::chrono::steady_clock::now();
 }
 
 }  // namespace certislam::actors

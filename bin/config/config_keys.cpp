@@ -171,8 +171,8 @@ std::vector<ConfigKey> SolverAndCertifierKeys() {
             "solver.mode", [](TeamConfig & c, int) -> auto& { return c.node.solver.synchronous; },
             {{"rounds", true}, {"asynchronous", false}},
             "keyframe sources: asynchronous RBCD throughout, or asynchronous while the graph "
-            "grows and synchronous RBCD++ rounds once it is final (rounds; a robot restarted "
-            "after its team's rounds converged is not yet rejoined); pose graphs: rounds"),
+            "grows and synchronous RBCD++ rounds once it is final (rounds; a restarted robot's "
+            "peers rejoin it in a new round session); pose graphs: rounds"),
         Num<double>(
             "solver.rounds_rel_grad_tol",
             [](TeamConfig & c, int) -> auto& { return c.node.solver.rounds.rel_grad_tol; },

@@ -1,10 +1,15 @@
 // Solver and certifier actors over real inproc sockets and real messages: two robots' solvers
 // exchange public poses asynchronously and reach the central certified optimum, the anchor's
-// certifier broadcasts a CERTIFIED verdict to both; a silent third robot stops nobody.
+// certifier broadcasts a CERTIFIED verdict to both; a silent third robot stops nobody; in rounds
+// mode a restarted robot rejoins its converged peer, and rounds without a peer fall back.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
+#include <filesystem>
 #include <set>
+#include <string>
 #include <thread>
 #include <utility>
 
@@ -209,6 +214,118 @@ TEST(SolverActor, ANewBundleReaderGetsTheBundleWithoutWaitingForTheResend) {
         }
         EXPECT_TRUE(block) << "reader " << k << ": no bundle within " << kPrompt.count() << " ms";
     }
+}
+
+SolverActorConfig RoundsConfig(const TwoRobotProblem& p) {
+    SolverActorConfig config = Config(p);
+    config.synchronous = true;  // a keyframe robot's solver.mode rounds
+    config.async_until_final = true;
+    return config;
+}
+
+// Max difference of a robot's trajectory from the central optimum (infinite when poses miss).
+double OffCentral(const SolverSnapshot& s,
+                  const std::vector<std::vector<Eigen::Isometry3d>>& central, int robot) {
+    if (s.trajectory.size() != central[robot].size()) return INFINITY;
+    double m = 0.0;
+    for (size_t i = 0; i < central[robot].size(); ++i) {
+        m = std::max(m, (s.trajectory[i].T_world_body.matrix() - central[robot][i].matrix())
+                            .cwiseAbs()
+                            .maxCoeff());
+    }
+    return m;
+}
+
+/// Inproc wiring, but a solver's poses and bundle streams on ipc: a peer that connected to them
+/// reconnects when a new solver binds them again (an inproc connection ends with its binder).
+TeamWiring RestartableWiring(int robot, const std::vector<int>& robots) {
+    TeamWiring w = InprocWiring(robot, robots);
+    for (int r : robots) {
+        for (Edge edge : {Edge::kPoses, Edge::kBundle}) {
+            w.addresses[r][edge] = "ipc://" + std::filesystem::temp_directory_path().string() +
+                                   "/certislam_solver_test_" + std::to_string(getpid()) + "_r" +
+                                   std::to_string(r) + "_" + std::to_string(int(edge));
+        }
+    }
+    return w;
+}
+
+// Robot 1's solver is replaced by a new one (a restart: no rounds, a new incarnation) after the
+// team's rounds converged and certified. Robot 0 opens a new round session, both sweep again, and
+// the certificate runs again on the new session's result (before: robot 1 waited at round 0).
+TEST(SolverActor, RestartedPeerRejoinsTheConvergedRoundsInANewSession) {
+    const TwoRobotProblem problem = MakeTwoRobotProblem(30, 4, 5);
+    zmq::context_t context;
+    const std::vector<int> robots{0, 1};
+    CertifierActor certifier(context, RestartableWiring(0, robots), {});
+    std::vector<std::unique_ptr<SolverActor>> solvers;
+    for (int r : robots) {
+        solvers.push_back(std::make_unique<SolverActor>(context, RestartableWiring(r, robots),
+                                                        RoundsConfig(problem)));
+    }
+    certifier.Start();
+    for (auto& s : solvers) s->Start();
+    Feeder feeder(context, robots, 2);
+    feeder.Feed(problem);
+    const auto certified = [](const SolverSnapshot& s, std::uint64_t session) {
+        return s.rounds_converged && s.round_session == session && s.local_ok && s.report &&
+               s.report->verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
+    };
+    ASSERT_TRUE(WaitFor([&] {
+        return certified(solvers[0]->Snapshot(), 0) && certified(solvers[1]->Snapshot(), 0);
+    })) << "the team's first rounds did not converge";
+
+    solvers[1].reset();
+    ASSERT_TRUE(WaitFor([&] {  // the old sockets' inproc names are released by the context
+        try {
+            solvers[1] = std::make_unique<SolverActor>(context, RestartableWiring(1, robots),
+                                                       RoundsConfig(problem));
+            solvers[1]->Start();
+            return true;
+        } catch (const zmq::error_t&) {
+            solvers[1].reset();
+            return false;
+        }
+    }));
+    ASSERT_TRUE(WaitFor([&] {  // re-fed until the new solver subscribed and has its graph
+        feeder.Feed(problem);
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        return solvers[1]->Snapshot().final;
+    }));
+    ASSERT_TRUE(WaitFor([&] {
+        return certified(solvers[0]->Snapshot(), 1) && certified(solvers[1]->Snapshot(), 1);
+    })) << "robot 0 in session "
+        << solvers[0]->Snapshot().round_session << ", robot 1 in "
+        << solvers[1]->Snapshot().round_session << " at " << solvers[1]->Snapshot().team_rounds
+        << " rounds";
+    const auto central = CentralSolution(problem);
+    for (int r : robots) {
+        EXPECT_LT(OffCentral(solvers[r]->Snapshot(), central, r), kPoseTolerance) << "robot " << r;
+    }
+}
+
+// Robot 1 takes no part in rounds (asynchronous updates only): robot 0's rounds wait for it, and
+// after rounds_stall without progress fall back to asynchronous updates, which reach the optimum.
+TEST(SolverActor, RoundsWithoutProgressFallBackToAsynchronousUpdates) {
+    const TwoRobotProblem problem = MakeTwoRobotProblem(20, 3, 6);
+    zmq::context_t context;
+    const std::vector<int> robots{0, 1};
+    SolverActorConfig config = RoundsConfig(problem);
+    config.rounds_stall = std::chrono::milliseconds(1000);
+    SolverActor rounds(context, InprocWiring(0, robots), config);
+    SolverActor asynchronous(context, InprocWiring(1, robots), Config(problem));
+    rounds.Start();
+    asynchronous.Start();
+    Feeder feeder(context, robots, 2);
+    feeder.Feed(problem);
+    const auto central = CentralSolution(problem);
+    ASSERT_TRUE(WaitFor([&] {
+        const auto s = rounds.Snapshot();
+        return s.final && s.rounds_gave_up && s.local_ok &&
+               OffCentral(asynchronous.Snapshot(), central, 1) < 1e-4;
+    })) << "robot 1 off the central optimum by "
+        << OffCentral(asynchronous.Snapshot(), central, 1);
+    EXPECT_FALSE(rounds.Snapshot().rounds_converged);
 }
 
 TEST(SolverActor, SilentNeighbourDoesNotStopTheOthers) {

@@ -153,13 +153,15 @@ class Distributed : public ::testing::Test {
         }
     }
 
-    std::string WriteConfig() {
+    /// The team's configuration; `solver_mode` sets solver.mode (empty: the default).
+    std::string WriteConfig(const std::string& solver_mode = "") {
         const int base = FreePortBase();
         std::ofstream out(dir_ / "team.json");
         out << R"({"robots": [0, 1],
   "source": {"kind": "simulator", "seed": 1, "max_keyframes": )"
             << kKeyframes << R"(},
-  "solver": {"rank": 5, "rel_grad_tol": 1e-9},
+  "solver": {"rank": 5, "rel_grad_tol": 1e-9)"
+            << (solver_mode.empty() ? "" : R"(, "mode": ")" + solver_mode + "\"") << R"(},
   "matcher": {"query_stride": 3},
   "mapping": {"voxel_m": 0.4},
   "network": {
@@ -248,6 +250,51 @@ TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum)
     EXPECT_EQ(code0, 0) << out0;
     EXPECT_NE(run.out.find("\"certified\": true"), std::string::npos) << run.out;
     EXPECT_GT(std::filesystem::file_size(dir_ / "logs" / "robot1.keyframes.log"), 0u);
+    for (int r = 0; r < 2; ++r) {
+        const std::string name = "robot" + std::to_string(r) + ".tum";
+        EXPECT_LT(
+            MaxDifference((dir_ / "local" / name).string(), (dir_ / "restarted" / name).string()),
+            kEqualTolerance)
+            << name << "\nlocal:\n"
+            << local.out << "\nrobot 0:\n"
+            << out0 << "\nrobot 1 (restarted):\n"
+            << run.out;
+    }
+}
+
+// solver.mode rounds: robot 1 is killed once its rounds converged (the team's: they converge
+// together) and started again. Robot 0, converged, hears robot 1's new incarnation and opens a new
+// round session; both sweep again from their iterates (robot 1 from its replayed graph), and the
+// team certifies the single-process run's trajectories. Before: robot 1 waited at round 0 of the
+// old session, where robot 0 had stopped, until its timeout.
+TEST_F(Distributed, RobotKilledAfterTheTeamsRoundsConvergedRejoinsThemWhenRestarted) {
+    MakeKeys();
+    if (HasFatalFailure()) return;
+    const std::string config = WriteConfig("rounds");
+    const auto local = testing::Shell(Binary() + " run " + config + " --json --timeout 120 --out " +
+                                      (dir_ / "local").string() + " 2>&1");
+    ASSERT_EQ(local.exit_code, 0) << local.out;
+    const std::string robot = Binary() + " robot " + config + " --json --timeout 90 --out " +
+                              (dir_ / "restarted").string() + " --log-dir " +
+                              (dir_ / "logs").string();
+    const std::string first = (dir_ / "r1_first.log").string();
+    // The kill waits for robot 1's progress line to say its rounds converged (at most 60 s).
+    const auto run = testing::Shell(
+        "(" + robot + " --id 0 > " + (dir_ / "r0.log").string() + " 2>&1; echo $? > " +
+        (dir_ / "r0.rc").string() + ") & " + robot + " --id 1 --progress 0.05 > " + first +
+        " 2>&1 & victim=$!; for i in $(seq 1200); do grep -q 'team rounds (converged)' " + first +
+        " && break; sleep 0.05; done; kill -9 $victim; sleep 1; " + robot +
+        " --id 1 2>&1; rc1=$?; wait; exit $rc1");
+    std::ifstream log0(dir_ / "r0.log"), log1(first);
+    const std::string out0((std::istreambuf_iterator<char>(log0)), {});
+    const std::string out1((std::istreambuf_iterator<char>(log1)), {});
+    ASSERT_NE(out1.find("team rounds (converged)"), std::string::npos) << out1;
+    ASSERT_EQ(run.exit_code, 0) << run.out << "\nrobot 0:\n" << out0;
+    std::ifstream rc0(dir_ / "r0.rc");
+    int code0 = -1;
+    rc0 >> code0;
+    EXPECT_EQ(code0, 0) << out0;
+    EXPECT_NE(run.out.find("\"certified\": true"), std::string::npos) << run.out;
     for (int r = 0; r < 2; ++r) {
         const std::string name = "robot" + std::to_string(r) + ".tum";
         EXPECT_LT(

@@ -172,6 +172,28 @@ class Distributed : public ::testing::Test {
         return (dir_ / "team.json").string();
     }
 
+    /// Robot 0 (exit code in r0.rc, log `out0`) and the restarted robot 1 (`run`) certified, with
+    /// the trajectories of the single-process run `local` (folders local/ and restarted/).
+    void ExpectRestartedTeamEqualsLocal(const testing::ShellResult& run,
+                                        const testing::ShellResult& local,
+                                        const std::string& out0) {
+        std::ifstream rc0(dir_ / "r0.rc");
+        int code0 = -1;
+        rc0 >> code0;
+        EXPECT_EQ(code0, 0) << out0;
+        EXPECT_NE(run.out.find("\"certified\": true"), std::string::npos) << run.out;
+        for (int r = 0; r < 2; ++r) {
+            const std::string name = "robot" + std::to_string(r) + ".tum";
+            EXPECT_LT(MaxDifference((dir_ / "local" / name).string(),
+                                    (dir_ / "restarted" / name).string()),
+                      kEqualTolerance)
+                << name << "\nlocal:\n"
+                << local.out << "\nrobot 0:\n"
+                << out0 << "\nrobot 1 (restarted):\n"
+                << run.out;
+        }
+    }
+
     std::filesystem::path dir_;
 };
 
@@ -244,22 +266,8 @@ TEST_F(Distributed, RobotKilledAndRestartedMidMissionRejoinsTheCertifiedOptimum)
     std::ifstream log0(dir_ / "r0.log");
     const std::string out0((std::istreambuf_iterator<char>(log0)), {});
     ASSERT_EQ(run.exit_code, 0) << run.out << "\nrobot 0:\n" << out0;
-    std::ifstream rc0(dir_ / "r0.rc");
-    int code0 = -1;
-    rc0 >> code0;
-    EXPECT_EQ(code0, 0) << out0;
-    EXPECT_NE(run.out.find("\"certified\": true"), std::string::npos) << run.out;
     EXPECT_GT(std::filesystem::file_size(dir_ / "logs" / "robot1.keyframes.log"), 0u);
-    for (int r = 0; r < 2; ++r) {
-        const std::string name = "robot" + std::to_string(r) + ".tum";
-        EXPECT_LT(
-            MaxDifference((dir_ / "local" / name).string(), (dir_ / "restarted" / name).string()),
-            kEqualTolerance)
-            << name << "\nlocal:\n"
-            << local.out << "\nrobot 0:\n"
-            << out0 << "\nrobot 1 (restarted):\n"
-            << run.out;
-    }
+    ExpectRestartedTeamEqualsLocal(run, local, out0);
 }
 
 // solver.mode rounds: robot 1 is killed once its rounds converged (the team's: they converge
@@ -290,21 +298,7 @@ TEST_F(Distributed, RobotKilledAfterTheTeamsRoundsConvergedRejoinsThemWhenRestar
     const std::string out1((std::istreambuf_iterator<char>(log1)), {});
     ASSERT_NE(out1.find("team rounds (converged)"), std::string::npos) << out1;
     ASSERT_EQ(run.exit_code, 0) << run.out << "\nrobot 0:\n" << out0;
-    std::ifstream rc0(dir_ / "r0.rc");
-    int code0 = -1;
-    rc0 >> code0;
-    EXPECT_EQ(code0, 0) << out0;
-    EXPECT_NE(run.out.find("\"certified\": true"), std::string::npos) << run.out;
-    for (int r = 0; r < 2; ++r) {
-        const std::string name = "robot" + std::to_string(r) + ".tum";
-        EXPECT_LT(
-            MaxDifference((dir_ / "local" / name).string(), (dir_ / "restarted" / name).string()),
-            kEqualTolerance)
-            << name << "\nlocal:\n"
-            << local.out << "\nrobot 0:\n"
-            << out0 << "\nrobot 1 (restarted):\n"
-            << run.out;
-    }
+    ExpectRestartedTeamEqualsLocal(run, local, out0);
 }
 
 // The team certified and left; robot 1 then restarts alone from its durable log. It replays the

@@ -81,9 +81,10 @@ bool SolverActor::InSession(int robot, std::uint64_t session, std::uint64_t inca
     const bool restarted = known != 0 && incarnation != 0 && incarnation != known;
     if (incarnation != 0) known = incarnation;
     if (restarted) {
+        const std::uint64_t next = std::max(session, round_session_) + 1;
         std::fprintf(stderr, "solver %d: robot %d restarted: round session %llu\n", RobotId(),
-                     robot, static_cast<unsigned long long>(std::max(session, round_session_) + 1));
-        NewSession(std::max(session, round_session_) + 1);
+                     robot, static_cast<unsigned long long>(next));
+        NewSession(next);
     } else if (session > round_session_) {
         NewSession(session);
     }

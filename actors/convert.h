@@ -20,11 +20,9 @@
 #include "certislam/v1/loop_closure.pb.h"
 #include "certislam/v1/map.pb.h"
 #include "certislam/v1/rbcd.pb.h"
-#include "certislam/v1/scan_context.pb.h"
 #include "slam/core/keyframe.h"
 #include "slam/core/loop_closure.h"
 #include "slam/core/pose_graph.h"
-#include "slam/frontend/scan_context.h"
 #include "transport/message.h"
 
 namespace certislam::actors {
@@ -63,19 +61,6 @@ transport::Message EncodeCloudReply(const v1::CloudReply& header_fields,
 /// The cloud of a CloudReply message (either wire form); nullopt when malformed or not found.
 std::optional<slam::PointCloudPtr> DecodeCloudReply(const transport::Message& message,
                                                     v1::CloudReply* reply);
-
-/// How a descriptor travels.
-enum class DescriptorWire {
-    kFloat32,  ///< every bin and the ring key as float (4.9 kB for 20 x 60)
-    kCompact,  ///< slam/frontend/scan_context_compression.h: 5 cm height steps, zstd
-};
-
-/// A Scan Context descriptor of keyframe `id` on the wire.
-v1::ScanContextDescriptor ToProto(const slam::ScanContext& descriptor, const slam::PoseId& id,
-                                  DescriptorWire wire = DescriptorWire::kCompact);
-/// The descriptor back (either wire form; keys recomputed); nullopt when sizes disagree with
-/// num_rings x num_sectors, the compact bytes do not decode, or values are not finite.
-std::optional<slam::ScanContext> FromProto(const v1::ScanContextDescriptor& descriptor);
 
 /// A loop closure on the wire (kappa, tau in Information6; fitness as RMSE).
 v1::LoopClosure ToProto(const slam::LoopClosure& loop);

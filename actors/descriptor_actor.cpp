@@ -2,6 +2,7 @@
 #include "actors/descriptor_actor.h"
 
 #include "actors/convert.h"
+#include "actors/convert_descriptor.h"
 #include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
 

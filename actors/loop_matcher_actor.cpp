@@ -9,6 +9,7 @@
 #include <string>
 
 #include "actors/convert.h"
+#include "actors/convert_descriptor.h"
 #include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
 #include "slam/frontend/downsample.h"

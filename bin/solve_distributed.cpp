@@ -1,8 +1,6 @@
 // The distributed solve: split, run the team of actors, report.
 #include "bin/solve_distributed.h"
 
-#include <sys/resource.h>
-
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -16,12 +14,6 @@ namespace certislam::bin {
 namespace {
 
 constexpr double kPlanarTolerance = 1e-6;  ///< metres and radians off the plane z = 0
-
-double PeakRssMb() {
-    rusage usage{};
-    getrusage(RUSAGE_SELF, &usage);
-    return static_cast<double>(usage.ru_maxrss) / 1024.0;  // KiB on Linux
-}
 
 void PrintText(const nlohmann::json& j) {
     std::printf("poses %d   edges %d   robots %d   path distributed (%s)\n", j["poses"].get<int>(),
@@ -41,54 +33,6 @@ void PrintText(const nlohmann::json& j) {
 }
 
 }  // namespace
-
-nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots,
-                              const std::string& transport) {
-    const v1::CertificateReport report = r.report.value_or(v1::CertificateReport{});
-    const bool certified = r.done && report.verdict() == v1::CERTIFICATE_VERDICT_CERTIFIED;
-    // The file's cost: the team's plus the constant of its merged parallel edges (none heard: 0).
-    const double cost = r.report ? report.objective() + r.cost_offset : 0.0;
-    nlohmann::json j = {{"schema_version", kSchemaVersion},
-                        {"method", "rbcd"},
-                        {"path", "distributed"},
-                        {"transport", transport},
-                        {"objective", cost},
-                        {"cost", cost},
-                        {"cost_offset", r.cost_offset},
-                        {"certified", certified},
-                        {"verdict", VerdictName(report.verdict())},
-                        {"certificate_path", CertificatePathName(report.path())},
-                        {"rank", r.rank},
-                        {"iterations", r.iterations},
-                        {"seconds", r.seconds},
-                        {"seconds_to_converged", r.seconds_to_converged},
-                        {"seconds_to_certified", r.seconds_to_certified},
-                        {"certificate_rounds", r.certificate_rounds},
-                        {"lanczos_steps", r.lanczos_steps},
-                        {"certificate_seconds", r.certificate_seconds},
-                        {"escapes", r.escapes},
-                        {"solver_mode", r.solver_mode},
-                        {"restarts", r.restarts},
-                        {"central_fallbacks", r.fallbacks},
-                        {"bytes_between_robots",
-                         {{"total", r.bytes_between_robots}, {"by_actor", r.bytes_by_actor}}},
-                        {"peak_rss_mb", PeakRssMb()},
-                        {"robots", robots}};
-    nlohmann::json by_robot = nlohmann::json::object(), steps = nlohmann::json::object();
-    for (const auto& [robot, bytes] : r.bytes_by_robot) by_robot[std::to_string(robot)] = bytes;
-    for (const auto& [robot, n] : r.iterations_by_robot) steps[std::to_string(robot)] = n;
-    j["bytes_between_robots"]["by_robot"] = by_robot;
-    j["iterations_by_robot"] = steps;
-    if (r.report) {
-        j["lambda_min"] = report.lambda_min();
-        // Only a bound the report carries (a zero field is an absent one, not a proof of f*).
-        if (certified && report.suboptimality_bound() > 0.0) {
-            j["suboptimality_bound"] = report.suboptimality_bound();
-        }
-    }
-    if (!r.done) j["reason"] = "not certified before the timeout";
-    return j;
-}
 
 int PrintDistributedReport(nlohmann::json* j, const actors::PoseGraphTeamResult& result,
                            const slam::PoseGraph& graph, const DistributedSolveOptions& o) {

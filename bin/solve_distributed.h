@@ -7,6 +7,7 @@
 #include <string>
 
 #include "actors/pose_graph_team.h"
+#include "bin/team_result.h"
 #include "slam/core/pose_graph.h"
 
 namespace certislam::bin {
@@ -22,11 +23,6 @@ struct DistributedSolveOptions {
     std::string transport = "inproc";    ///< inproc (one process), ipc or tcp (robot processes)
     std::string eigensolver = "lobpcg";  ///< the certificate's: lobpcg or lanczos
 };
-
-/// The report of a pose-graph team run (cost, verdict, team rounds, bytes between robots by
-/// actor and robot, certificate rounds and Lanczos steps); `"path": "distributed"`.
-nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& result, int robots,
-                              const std::string& transport = "inproc");
 
 /// Adds the file's fields to the team's report `j` (of `result`) and prints it (JSON or text);
 /// returns the command's exit code (certified or not). A planar graph's lift certifies the

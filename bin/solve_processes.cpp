@@ -1,5 +1,6 @@
 // The distributed solve as separate robot processes: a team configuration in a private folder,
-// one `certislam robot` per robot (killed with this process), their reports merged.
+// one `certislam-robot` (else `certislam robot`) per robot (killed with this process), their
+// reports merged.
 #include "bin/solve_processes.h"
 
 #include <fcntl.h>
@@ -98,7 +99,7 @@ nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partit
     return config;
 }
 
-/// Starts `exe robot CONFIG --id K --json --timeout T`, stdout and stderr to files; the child
+/// Starts `ROBOT-COMMAND CONFIG --id K --json --timeout T`, stdout and stderr to files; the child
 /// dies with this process (PR_SET_PDEATHSIG).
 pid_t Spawn(const std::vector<std::string>& args, const std::string& out, const std::string& log) {
     const int out_fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
@@ -156,6 +157,15 @@ void WaitAll(std::vector<Child>* children, Clock::time_point deadline) {
             std::this_thread::sleep_for(std::chrono::milliseconds(20));
         }
     }
+}
+
+/// The command of one robot process: `certislam-robot` beside this executable (the lean one: no
+/// PCL, OpenVDB or front end mapped), else this executable's `robot` subcommand.
+std::vector<std::string> RobotCommand() {
+    const fs::path self = fs::read_symlink("/proc/self/exe");
+    const fs::path lean = self.parent_path() / "certislam-robot";
+    if (::access(lean.c_str(), X_OK) == 0) return {lean.string()};
+    return {self.string(), "robot"};
 }
 
 std::string Slurp(const std::string& path) {
@@ -241,7 +251,7 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
     const fs::path dir = templ;
     const std::string config = (dir / "team.json").string();
     std::ofstream(config) << TeamConfigOf(o, partition, dir).dump(2) << "\n";
-    const std::string exe = fs::read_symlink("/proc/self/exe").string();
+    const std::vector<std::string> robot_command = RobotCommand();
     const auto start = Clock::now();
     std::vector<Child> children(static_cast<size_t>(partition.num_robots()));
     for (int k = 0; k < partition.num_robots(); ++k) {
@@ -249,9 +259,10 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
         c.robot = k;
         c.out = (dir / ("robot" + std::to_string(k) + ".json")).string();
         c.log = (dir / ("robot" + std::to_string(k) + ".log")).string();
-        c.pid = Spawn({exe, "robot", config, "--id", std::to_string(k), "--json", "--timeout",
-                       std::to_string(o.timeout_s)},
-                      c.out, c.log);
+        std::vector<std::string> args = robot_command;
+        args.insert(args.end(), {config, "--id", std::to_string(k), "--json", "--timeout",
+                                 std::to_string(o.timeout_s)});
+        c.pid = Spawn(args, c.out, c.log);
     }
     WaitAll(&children, start + std::chrono::duration_cast<Clock::duration>(
                                    std::chrono::duration<double>(o.timeout_s + kGraceSeconds)));
@@ -280,7 +291,11 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
     j["eigensolver"] = o.eigensolver;
     j["peak_rss_mb"] = peak;  // the largest robot process
     j["peak_rss_mb_by_robot"] = rss;
-    j["wall_seconds"] = wall;  // processes started, graph read, solved, certified, exited
+    j["wall_seconds"] = wall;
+    j["robot_executable"] =
+        fs::path(robot_command.front())
+            .filename()
+            .string();  // processes started, graph read, solved, certified, exited
     return PrintDistributedReport(&j, result, graph, o);
 }
 

@@ -1,4 +1,4 @@
-// `certislam solve FILE --distributed --transport ipc|tcp`: each robot a `certislam robot`
+// `certislam solve FILE --distributed --transport ipc|tcp`: each robot a `certislam-robot`
 // process of its own on this host (a generated team configuration with a pose-graph source),
 // over Unix sockets or tcp; their reports merged into the one report of the team.
 #pragma once

@@ -1,12 +1,13 @@
-# Installing certislam: the command, the algorithm libraries with their headers and a CMake
-# package (find_package(certislam) -> certislam::slam_core, certislam::certify, ...), and a
-# Debian package of it all (cpack -G DEB).
+# Installing certislam: the command and certislam-robot (one back-end-only robot, without PCL or
+# OpenVDB), the algorithm libraries with their headers and a CMake package
+# (find_package(certislam) -> certislam::slam_core, certislam::certify, ...), and a Debian package
+# of it all (cpack -G DEB).
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
 set(CERTISLAM_EXPORTED
-  slam_core slam_io slam_sim slam_frontend slam_backend slam_mapping slam_eval slam
-  certify certify_distributed pipeline pcl pcl_io zstd cholmod)
+  slam_core slam_io_base slam_io slam_sim slam_frontend slam_backend slam_mapping slam_eval slam
+  certify certify_distributed pipeline_rounds pipeline pcl pcl_io zstd cholmod)
 set(exported_targets)
 foreach(name ${CERTISLAM_EXPORTED})
   set(target certislam_${name})
@@ -17,7 +18,7 @@ endforeach()
 install(TARGETS ${exported_targets} EXPORT certislamTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/certislam)
-install(TARGETS certislam RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(TARGETS certislam certislam-robot RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/slam ${PROJECT_SOURCE_DIR}/certify
         DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/certislam FILES_MATCHING PATTERN "*.h")
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/deploy/configs

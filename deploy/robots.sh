@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Starts N robots of a team configuration as separate `certislam robot` processes, each in its
+# Starts N robots of a team configuration as separate `certislam robot` processes (pose-graph
+# sources: `certislam-robot`, the lean back-end-only executable beside it), each in its
 # own network namespace joined by veth pairs on a bridge (a free 10.77.X.0/24, or
 # CERTISLAM_SUBNET=A.B.C), talking tcp with CURVE keys made by `certislam keygen`; falls back to
 # plain loopback where namespaces are not allowed (not root, no `ip netns`) or when

@@ -128,12 +128,20 @@ json.dump(team, open(sys.argv[2], "w"), indent=2)
 PY
 }
 
-# team_start K LOG ARGS...: `certislam robot ARGS --id K` in robot K's namespace, in the
-# background, output to LOG; its pid in team_pid.
+# team_start K LOG CONFIG ARGS...: `certislam robot CONFIG ARGS --id K` in robot K's namespace, in
+# the background, output to LOG; its pid in team_pid. A pose-graph team's robots run the lean
+# `certislam-robot` beside the binary instead (same options; no PCL or OpenVDB loaded).
 team_start() {
     local k="$1" log="$2"
     shift 2
     local run=("$team_bin" robot "$@" --id "$k")
+    local lean
+    lean="$(dirname "$team_bin")/certislam-robot"
+    if [ -x "$lean" ] && python3 -c 'import json, sys
+sys.exit(json.load(open(sys.argv[1])).get("source", {}).get("kind") != "pose_graph")' "$1" \
+        2>/dev/null; then
+        run=("$lean" "$@" --id "$k")
+    fi
     if [ "$team_netns" = 1 ]; then run=(ip netns exec "$team_tag-r$k" "${run[@]}"); fi
     "${run[@]}" >"$log" 2>&1 &
     team_pid=$!

@@ -47,8 +47,17 @@ actors::RobotNodeConfig NodeConfigFor(const TeamConfig& config, int robot);
 /// from the start, to solve --distributed's tolerance (not the keyframe robots' asynchronous mode).
 actors::PoseGraphNodeConfig PoseGraphNodeConfigFrom(const actors::RobotNodeConfig& node);
 
-/// Reads a configuration file (YAML; JSON is YAML too) against TeamConfigKeys(). Throws
-/// std::runtime_error naming the file, the line and the key path.
+/// Reads a configuration file (YAML; JSON is YAML too) against TeamConfigKeys() and checks the
+/// team, the source and the network; for a pose-graph source also the settings its robots use
+/// (PoseGraphNodeConfigFrom's). Throws std::runtime_error naming the file, the line and the key
+/// path. Links no front end: what a back-end-only robot reads its configuration with.
+TeamConfig ReadTeamConfig(const std::string& path);
+
+/// For a keyframe source, checks every actor's settings and the simulator's (a pose-graph source:
+/// nothing more than ReadTeamConfig did). Throws std::runtime_error naming the file and field.
+void CheckActorSettings(const TeamConfig& config);
+
+/// ReadTeamConfig, then CheckActorSettings (team_config_keyframes.cpp).
 TeamConfig LoadTeamConfig(const std::string& path);
 
 /// The wiring of `robot` as a process of its own (robot mode): tcp (CURVE when keys are

@@ -64,16 +64,6 @@ PoseMatrix FromIsometries(const std::vector<std::vector<Eigen::Isometry3d>>& pos
 
 }  // namespace
 
-void EdgeNoiseConfig::Validate() const {
-    Require(odometry_sigma_t_m > 0, "EdgeNoiseConfig.odometry_sigma_t_m", odometry_sigma_t_m,
-            "must be > 0");
-    Require(odometry_sigma_r_rad > 0, "EdgeNoiseConfig.odometry_sigma_r_rad", odometry_sigma_r_rad,
-            "must be > 0");
-    Require(loop_sigma_t_m > 0, "EdgeNoiseConfig.loop_sigma_t_m", loop_sigma_t_m, "must be > 0");
-    Require(loop_sigma_r_rad > 0, "EdgeNoiseConfig.loop_sigma_r_rad", loop_sigma_r_rad,
-            "must be > 0");
-}
-
 void MissionSolverConfig::Validate() const {
     Require(rank >= 3, "MissionSolverConfig.rank", rank, "must be >= 3");
     Require(max_staircase_steps >= 0, "MissionSolverConfig.max_staircase_steps",

@@ -13,7 +13,7 @@
 #include <set>
 #include <vector>
 
-#include "certify/pipeline/mission.h"
+#include "certify/pipeline/edge_noise.h"
 #include "slam/backend/rbcd.h"
 #include "slam/core/loop_closure.h"
 #include "slam/core/pose_graph.h"

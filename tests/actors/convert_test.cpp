@@ -1,6 +1,7 @@
 // Conversions: slam types survive a round trip through real protobuf bytes and ZeroMQ frames; the
 // cloud is not copied inside a process; malformed messages decode to nothing.
 #include "actors/convert.h"
+#include "actors/convert_descriptor.h"
 
 #include <gtest/gtest.h>
 

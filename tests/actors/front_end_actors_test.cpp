@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "actors/convert.h"
+#include "actors/convert_descriptor.h"
 #include "actors/descriptor_actor.h"
 #include "actors/ingest_actor.h"
 #include "actors/loop_matcher_actor.h"

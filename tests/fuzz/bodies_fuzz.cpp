@@ -9,6 +9,7 @@
 #include <span>
 
 #include "actors/convert.h"
+#include "actors/convert_descriptor.h"
 #include "certify/distributed/distributed_lobpcg.h"
 #include "certislam/v1/control.pb.h"
 #include "tests/fuzz/fuzz_frames.h"

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "actors/convert.h"
+#include "actors/convert_descriptor.h"
 #include "actors/durable_log.h"
 #include "certislam/v1/control.pb.h"
 #include "slam/frontend/scan_context.h"

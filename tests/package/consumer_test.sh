@@ -8,6 +8,8 @@ trap 'rm -rf "$prefix"' EXIT
 cmake --install "$build" --prefix "$prefix/usr" >/dev/null
 test -x "$prefix/usr/bin/certislam"
 "$prefix/usr/bin/certislam" --version
+test -x "$prefix/usr/bin/certislam-robot"  # the lean back-end-only robot, installed beside it
+"$prefix/usr/bin/certislam-robot" --version
 cmake -S "$src/tests/package/consumer" -B "$prefix/consumer" -DCMAKE_BUILD_TYPE=Release \
       -DCMAKE_PREFIX_PATH="$prefix/usr" >/dev/null
 cmake --build "$prefix/consumer" -j2 >/dev/null

@@ -1,0 +1,28 @@
+// `certislam-robot CONFIG --id K [--json]`: one back-end-only robot (pose-graph source, RBCD
+// solver and certifier actors) as a process of its own, with `certislam robot`'s options,
+// configuration and errors (bin/robot_command.h), in an executable that links no PCL, OpenVDB,
+// front end or mapping: `solve --distributed --transport ipc|tcp` starts one per robot.
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "bin/command.h"
+#include "bin/robot_command.h"
+#include "bin/version.h"
+
+int main(int argc, char** argv) {
+    using namespace certislam::bin;  // NOLINT(google-build-using-namespace): a thin main
+    CLI::App app{
+        "One back-end-only robot of a configuration (pose_graph source); peers over tcp "
+        "or ipc (CURVE with keys)"};
+    app.name("certislam-robot");
+    app.set_version_flag("--version",
+                         std::string("certislam-robot ") + kVersion + " (" + kGitDescribe + ")");
+    RobotCommandOptions options;
+    AddRobotCommandOptions(app, &options);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e) == 0 ? kExitDone : kExitUsage;
+    }
+    return RunRobotCommand(options, "certislam-robot", nullptr);
+}

@@ -434,9 +434,9 @@ void CertifierActor::RoundFinished() {
     Eigen::MatrixXd X;
     const bool assembled = anchor_ && Assemble(round_bundles_, &graph, &X);
     std::optional<certify::CertificateResult> decided;
-    Eigen::SparseMatrix<double> Q;
+    const Eigen::SparseMatrix<double> Q =
+        assembled ? slam::ConnectionLaplacian(graph) : Eigen::SparseMatrix<double>();
     if (assembled) {
-        Q = slam::ConnectionLaplacian(graph);
         decided = certify::DecideRound(verdict, config_.certificate, certify::RoundPsdTest(Q, X));
     }
     std::optional<certify::CertificateResult> central;

@@ -30,11 +30,17 @@ int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
                       const TeamConfig& config, const RobotCommandOptions& o) {
     const int id = o.id;
     const double timeout_s = o.timeout_s;
-    const auto graphs = LoadPoseGraphSource(config.path, config.source, config.robots);
+    double cost_offset = 0.0;
+    slam::RobotGraph own;
+    {  // every robot reads the whole file; it keeps its own block only
+        auto graphs = LoadPoseGraphSource(config.path, config.source, config.robots);
+        cost_offset = slam::CostOffset(graphs);
+        own = std::move(graphs.at(static_cast<size_t>(id)));
+    }
     const actors::PoseGraphNodeConfig node_config =
         PoseGraphNodeConfigFrom(NodeConfigFor(config, id));
     const auto start = std::chrono::steady_clock::now();
-    actors::PoseGraphNode node(context, wiring, graphs.at(static_cast<size_t>(id)), node_config);
+    actors::PoseGraphNode node(context, wiring, std::move(own), node_config);
     node.Start();
     bool done = false;
     while (!done &&
@@ -44,7 +50,7 @@ int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
     }
     actors::PoseGraphTeamResult result = actors::SummariseNodes({&node});
     result.done = done;
-    result.cost_offset = slam::CostOffset(graphs);
+    result.cost_offset = cost_offset;
     result.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     node.Stop();

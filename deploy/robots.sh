@@ -35,7 +35,7 @@ for ((k = 0; k < n; k++)); do
     code=0
     wait "${pids[$k]}" || code=$?
     case "$code" in
-        0) echo "robot $k: certified ($out/robot$k.tum)" ;;
+        0) echo "robot $k: certified ($out/robot$k.report.json)" ;;
         3) echo "robot $k: finished, not certified (see $out/robot$k.log)" ;;
         *) echo "robot $k: exit $code (see $out/robot$k.log)" ;;
     esac

@@ -160,7 +160,10 @@ for k in range(n):
 verdicts = sorted({r.get("verdict", "none") for r in reports})
 team = {
     "schema_version": 1,
-    "robots": [robot for r in reports for robot in r.get("robots", [])],
+    # A keyframe robot lists its robots; a pose-graph robot (certislam-robot) names itself.
+    "robots": [robot for r in reports
+               for robot in (r["robots"] if isinstance(r.get("robots"), list)
+                             else [r["robot"]] if "robot" in r else [])],
     "reports": len(reports),
     "certified": len(reports) == n and all(r.get("certified") for r in reports),
     "verdict": verdicts[0] if len(verdicts) == 1 and len(reports) == n else "inconclusive",

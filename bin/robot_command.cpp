@@ -95,7 +95,8 @@ void AddRobotCommandOptions(CLI::App& app, RobotCommandOptions* o) {
     app.option_defaults()->always_capture_default();
     app.add_option("CONFIG", o->config_path, "team configuration (YAML or JSON)")->required();
     app.add_option("--id", o->id, "this robot's id")->required();
-    app.add_option("--out", o->out_dir, "write robot<K>.tum and robot<K>.report.json here");
+    app.add_option("--out", o->out_dir,
+                   "write robot<K>.report.json here (keyframe robots: and robot<K>.tum)");
     app.add_option("--timeout", o->timeout_s, "give up after this many seconds");
     app.add_option("--log-dir", o->log_dir, "durable log folder (overrides the config's log_dir)");
     app.add_flag("--json", o->json, "print the report as JSON");

@@ -41,6 +41,7 @@ void LoopMatcherConfig::Validate() const {
     Require(request_retry.count() > 0, "request_retry", request_retry.count(), "must be > 0");
     Require(max_rmse_m > 0, "max_rmse_m", max_rmse_m, "must be > 0");
     Require(place_window >= 0, "place_window", place_window, "must be >= 0");
+    Require(prepared_clouds >= 0, "prepared_clouds", prepared_clouds, "must be >= 0");
     Require(max_candidates_per_query >= 0, "max_candidates_per_query", max_candidates_per_query,
             "must be >= 0");
     pcm.Validate();
@@ -243,8 +244,10 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
 
 void LoopMatcherActor::Verify(const slam::LoopCandidate& c, const slam::PointCloud& match_cloud) {
     const slam::PoseId query = c.query, match = c.match;
-    const auto result = slam::RegisterScans(*own_clouds_.at(query.index), match_cloud,
-                                            slam::YawGuess(c.yaw_rad), config_.registration);
+    const auto source = Prepared(query, *own_clouds_.at(query.index));
+    const auto target = Prepared(match, match_cloud);
+    const auto result =
+        slam::RegisterScans(*source, *target, slam::YawGuess(c.yaw_rad), config_.registration);
     if (!result.accepted() || result.inlier_rmse_m > config_.max_rmse_m) {
         ++rejected_;
         if (match.robot != RobotId()) gate_.Failed(c);  // the place is open again
@@ -265,6 +268,25 @@ void LoopMatcherActor::Verify(const slam::LoopCandidate& c, const slam::PointClo
     }
     // A peer that sent no odometry with its cloud cannot be checked: the loop is not used.
     if (pcm_.Add(loop, result.information)) pcm_dirty_ = true;
+}
+
+std::shared_ptr<const slam::PreparedCloud> LoopMatcherActor::Prepared(
+    const slam::PoseId& id, const slam::PointCloud& cloud) {
+    const auto order = std::find(prepared_order_.begin(), prepared_order_.end(), id);
+    if (order != prepared_order_.end()) {  // used again: now the latest
+        prepared_order_.erase(order);
+        prepared_order_.push_back(id);
+        return prepared_.at(id);
+    }
+    auto prepared = std::make_shared<const slam::PreparedCloud>(cloud, config_.registration);
+    if (config_.prepared_clouds == 0) return prepared;
+    if (static_cast<int>(prepared_order_.size()) >= config_.prepared_clouds) {
+        prepared_.erase(prepared_order_.front());
+        prepared_order_.pop_front();
+    }
+    prepared_.emplace(id, prepared);
+    prepared_order_.push_back(id);
+    return prepared;
 }
 
 void LoopMatcherActor::SendLoop(v1::LoopClosure proto, bool inter_robot) {

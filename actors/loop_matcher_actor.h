@@ -10,7 +10,9 @@
 
 #include <atomic>
 #include <chrono>
+#include <deque>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <utility>
@@ -48,6 +50,9 @@ struct LoopMatcherConfig {
     /// by Scan Context distance among the descriptors at hand (0: every candidate). In a
     /// featureless place (a tunnel) one keyframe resembles a whole stretch of the other's.
     int max_candidates_per_query = 0;
+    /// Keyframes whose clouds stay prepared for registration (downsampled, trees, GICP
+    /// covariances), >= 0, the latest used kept: a keyframe is often in several candidates.
+    int prepared_clouds = 16;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -91,6 +96,9 @@ class LoopMatcherActor final : public NodeActor {
     bool OnCloudReply(const transport::Message& m);
     void Consider(const slam::LoopCandidate& candidate);
     void Verify(const slam::LoopCandidate& candidate, const slam::PointCloud& match_cloud);
+    /// `cloud` of keyframe `id` prepared for registration, kept among the latest used.
+    std::shared_ptr<const slam::PreparedCloud> Prepared(const slam::PoseId& id,
+                                                        const slam::PointCloud& cloud);
     void RequestCloud(std::uint64_t id, const Pending& p);
     slam::PointCloudPtr ReplyCloud(int index);
     void OnOwnKeyframe(const slam::Keyframe& keyframe);
@@ -109,6 +117,8 @@ class LoopMatcherActor final : public NodeActor {
     std::map<int, slam::PointCloudPtr> reply_clouds_;          ///< own keyframe -> as sent
     std::map<slam::PoseId, slam::PointCloudPtr> peer_clouds_;  ///< fetched, kept (gate: once)
     std::map<slam::PoseId, std::vector<slam::LoopCandidate>> waiting_;  ///< on a fetch
+    std::map<slam::PoseId, std::shared_ptr<const slam::PreparedCloud>> prepared_;
+    std::deque<slam::PoseId> prepared_order_;  ///< prepared_'s keys, least recently used first
     slam::CloudRequestGate gate_;
     std::map<slam::PoseId, slam::ScanContext> descriptors_;  ///< own and lower robots'
     std::map<std::uint64_t, Pending> pending_;  ///< request id -> candidate that fetched

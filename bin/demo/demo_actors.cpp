@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <future>
 #include <memory>
 #include <thread>
 #include <zmq.hpp>
@@ -93,7 +94,8 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
 
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
                                     double timeout_s, double voxel_m, bool distributed_certificate,
-                                    const ActorProgress& progress, const CloudMaker& make_cloud) {
+                                    const ActorProgress& progress, const CloudMaker& make_cloud,
+                                    const WhileMeshing& while_meshing) {
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
     std::vector<int> ids;
@@ -138,8 +140,14 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
     }
     result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     Collect(nodes, &result);
-    if (actors::MapperActor* mapper = nodes.front()->Mapper()) {
-        if (progress) progress("actor graph: fusing the mappers' submaps", 0.95);
+    actors::MapperActor* mapper = nodes.front()->Mapper();
+    if (mapper && progress) progress("actor graph: fusing the mappers' submaps", 0.95);
+    // The side work reads only what Collect filled; the mesh fields below are written here.
+    std::future<void> side;
+    if (while_meshing) {
+        side = std::async(std::launch::async, [&while_meshing, &result] { while_meshing(result); });
+    }
+    if (mapper) {
         // Two publish periods: the last re-anchorings reach robot 0's mapper.
         std::this_thread::sleep_for(2 * config.mapper.publish_period);
         const auto mesh_start = Clock::now();
@@ -150,6 +158,7 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
             if (node->Mapper()) result.map_bytes_sent += node->Mapper()->Stats().submap_bytes_sent;
         }
     }
+    if (side.valid()) side.get();
     const auto stop_start = Clock::now();
     for (auto& node : nodes) node->Stop();
     result.stop_seconds = std::chrono::duration<double>(Clock::now() - stop_start).count();

@@ -58,6 +58,10 @@ struct ActorMissionResult {
 /// Progress of the run: stage and fraction done in [0, 1].
 using ActorProgress = std::function<void(const std::string& stage, double fraction)>;
 
+/// Work on the finished graph (its trajectories, edges, certificate: every field but the map's)
+/// that runs on its own thread while robot 0's mapper fuses the mesh.
+using WhileMeshing = std::function<void(const ActorMissionResult& graph)>;
+
 /// The cloud of keyframe `index` of `robot`, made when the robot's ingest asks for it.
 using CloudMaker = std::function<slam::PointCloudPtr(int robot, int index)>;
 
@@ -65,10 +69,13 @@ using CloudMaker = std::function<slam::PointCloudPtr(int robot, int index)>;
 /// `timeout_s` passes; every keyframe queries the loop matcher. A keyframe without a cloud gets
 /// `make_cloud`'s on the robot's own ingest thread, so the robots' scans are made in parallel
 /// and while the team works. The TSDF mappers run with voxels of `voxel_m` (0: no mapper).
+/// `while_meshing` (if set) runs once the graph is done, beside the mesh fusion, and has
+/// returned when this does.
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
                                     double timeout_s, double voxel_m,
                                     bool distributed_certificate = true,
                                     const ActorProgress& progress = {},
-                                    const CloudMaker& make_cloud = {});
+                                    const CloudMaker& make_cloud = {},
+                                    const WhileMeshing& while_meshing = {});
 
 }  // namespace certislam::bin

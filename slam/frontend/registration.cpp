@@ -1,4 +1,5 @@
-// Scan-to-scan registration: the settings check, the yaw guess and RegisterScans with PCL's GICP
+// Scan-to-scan registration: the settings check, the yaw guess, clouds prepared once (trees, GICP
+// covariances) and RegisterScans with PCL's GICP
 // (the project's only PCL registration translation unit: no PCL header leaves this file).
 #include "slam/frontend/registration.h"
 
@@ -12,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "slam/core/check.h"
 #include "slam/frontend/downsample.h"
 #include "slam/frontend/point_kdtree.h"
 #include "slam/frontend/registration_quality.h"
@@ -52,6 +54,9 @@ class NanoflannSearch : public pcl::search::KdTree<pcl::PointXYZ> {
         nano_ = std::make_unique<PointKdTree>(points_);
     }
 
+    /// The tree over the cloud last given to setInputCloud.
+    const PointKdTree& Tree() const { return *nano_; }
+
     int nearestKSearch(const pcl::PointXYZ& point, int k, pcl::Indices& k_indices,
                        std::vector<float>& k_sqr_distances) const override {
         std::vector<std::size_t> found;
@@ -80,20 +85,60 @@ class NanoflannSearch : public pcl::search::KdTree<pcl::PointXYZ> {
     std::unique_ptr<PointKdTree> nano_;
 };
 
+using Gicp = pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>;
+
+// GICP whose per-point covariances (Segal et al. 2009, Sec. III-B) can be computed on their own.
+class CovarianceGicp : public Gicp {
+  public:
+    explicit CovarianceGicp(int neighbours) { setCorrespondenceRandomness(neighbours); }
+    void Compute(const PclCloud::ConstPtr& cloud, const std::shared_ptr<NanoflannSearch>& tree,
+                 MatricesVector& covariances) {
+        computeCovariances<pcl::PointXYZ>(cloud, tree, covariances);
+    }
+};
+
 struct StageResult {
     Eigen::Matrix4f T_target_source;
     bool converged = false;
 };
 
-// One GICP run (Segal et al. 2009) from `guess`.
-StageResult RunGicp(const PointCloud& source, const PointCloud& target,
+}  // namespace
+
+struct PreparedCloud::Stage {
+    PointCloud points;                      ///< downsampled at the stage's voxel
+    PclCloud::Ptr pcl;                      ///< the same points for PCL
+    std::shared_ptr<NanoflannSearch> tree;  ///< over pcl (null below min_points)
+    Gicp::MatricesVectorPtr covariances;    ///< GICP's, per point (null below min_points)
+};
+
+namespace {
+
+// Downsampled points; their tree and covariances only when registration will use them.
+std::unique_ptr<PreparedCloud::Stage> MakeStage(const PointCloud& cloud, double voxel_m,
+                                                const RegistrationConfig& config) {
+    auto stage = std::make_unique<PreparedCloud::Stage>();
+    stage->points = VoxelDownsample(cloud, voxel_m);
+    if (static_cast<int>(stage->points.size()) < config.min_points) return stage;
+    stage->pcl = ToPcl(stage->points);
+    stage->tree = std::make_shared<NanoflannSearch>();
+    stage->tree->setInputCloud(stage->pcl);
+    stage->covariances = std::make_shared<Gicp::MatricesVector>();
+    CovarianceGicp(config.covariance_neighbours)
+        .Compute(stage->pcl, stage->tree, *stage->covariances);
+    return stage;
+}
+
+// One GICP run (Segal et al. 2009) from `guess` on prepared stages (trees and covariances kept).
+StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Stage& target,
                     const Eigen::Matrix4f& guess, double max_correspondence_m,
                     const RegistrationConfig& config) {
-    pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ> gicp;
-    gicp.setSearchMethodSource(std::make_shared<NanoflannSearch>());
-    gicp.setSearchMethodTarget(std::make_shared<NanoflannSearch>());
-    gicp.setInputSource(ToPcl(source));
-    gicp.setInputTarget(ToPcl(target));
+    Gicp gicp;
+    gicp.setSearchMethodSource(source.tree, /*force_no_recompute=*/true);
+    gicp.setSearchMethodTarget(target.tree, /*force_no_recompute=*/true);
+    gicp.setInputSource(source.pcl);  // resets the covariances: set them after
+    gicp.setSourceCovariances(source.covariances);
+    gicp.setInputTarget(target.pcl);
+    gicp.setTargetCovariances(target.covariances);
     gicp.setMaxCorrespondenceDistance(max_correspondence_m);
     gicp.setMaximumIterations(config.max_iterations);
     gicp.setCorrespondenceRandomness(config.covariance_neighbours);
@@ -145,35 +190,62 @@ Eigen::Isometry3d YawGuess(double yaw_rad) {
     return T;
 }
 
+PreparedCloud::PreparedCloud(const PointCloud& cloud, const RegistrationConfig& config)
+    : voxel_m_(config.voxel_m),
+      coarse_voxel_m_(config.coarse_voxel_m),
+      covariance_neighbours_(config.covariance_neighbours),
+      min_points_(config.min_points) {
+    config.Validate();
+    fine_ = MakeStage(cloud, config.voxel_m, config);
+    if (config.coarse_voxel_m > 0 && fine_->tree) {
+        coarse_ = MakeStage(cloud, config.coarse_voxel_m, config);
+        if (!coarse_->tree) coarse_.reset();
+    }
+}
+
+PreparedCloud::~PreparedCloud() = default;
+
+int PreparedCloud::NumFinePoints() const { return static_cast<int>(fine_->points.size()); }
+
+bool PreparedCloud::PreparedFor(const RegistrationConfig& config) const {
+    return voxel_m_ == config.voxel_m && coarse_voxel_m_ == config.coarse_voxel_m &&
+           covariance_neighbours_ == config.covariance_neighbours &&
+           min_points_ == config.min_points;
+}
+
 RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& target,
                                  const Eigen::Isometry3d& T_target_source_guess,
                                  const RegistrationConfig& config) {
+    return RegisterScans(PreparedCloud(source, config), PreparedCloud(target, config),
+                         T_target_source_guess, config);
+}
+
+RegistrationResult RegisterScans(const PreparedCloud& source, const PreparedCloud& target,
+                                 const Eigen::Isometry3d& T_target_source_guess,
+                                 const RegistrationConfig& config) {
     config.Validate();
+    CERTISLAM_CHECK(source.PreparedFor(config) && target.PreparedFor(config));
     RegistrationResult result;
     result.T_target_source = T_target_source_guess;
-    const PointCloud src = VoxelDownsample(source, config.voxel_m);
-    const PointCloud tgt = VoxelDownsample(target, config.voxel_m);
-    result.num_source_points = static_cast<int>(src.size());
-    result.num_target_points = static_cast<int>(tgt.size());
+    result.num_source_points = source.NumFinePoints();
+    result.num_target_points = target.NumFinePoints();
     if (result.num_source_points < config.min_points ||
         result.num_target_points < config.min_points) {
         result.status = RegistrationResult::Status::kTooFewPoints;
         return result;
     }
     Eigen::Matrix4f T = T_target_source_guess.matrix().cast<float>();
-    if (config.coarse_voxel_m > 0) {  // coarse stage: wide gate absorbs SC's metres of offset
-        const PointCloud src_c = VoxelDownsample(source, config.coarse_voxel_m);
-        const PointCloud tgt_c = VoxelDownsample(target, config.coarse_voxel_m);
-        if (static_cast<int>(std::min(src_c.size(), tgt_c.size())) >= config.min_points) {
-            const StageResult coarse =
-                RunGicp(src_c, tgt_c, T, config.coarse_max_correspondence_m, config);
-            if (coarse.converged) T = coarse.T_target_source;
-        }
+    if (source.Coarse() && target.Coarse()) {  // coarse stage: wide gate absorbs SC's metres
+        const StageResult coarse = RunGicp(*source.Coarse(), *target.Coarse(), T,
+                                           config.coarse_max_correspondence_m, config);
+        if (coarse.converged) T = coarse.T_target_source;
     }
-    const StageResult fine = RunGicp(src, tgt, T, config.max_correspondence_m, config);
+    const StageResult fine =
+        RunGicp(source.Fine(), target.Fine(), T, config.max_correspondence_m, config);
     result.converged = fine.converged;
     result.T_target_source = ToIsometry(fine.T_target_source);
-    const RegistrationResult::Status quality = EvaluateAlignment(src, tgt, config, result);
+    const RegistrationResult::Status quality = EvaluateAlignment(
+        source.Fine().points, target.Fine().points, target.Fine().tree->Tree(), config, result);
     result.status = result.converged ? quality : RegistrationResult::Status::kNotConverged;
     return result;
 }

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <memory>
 
 #include "slam/core/keyframe.h"
 
@@ -64,10 +65,41 @@ struct RegistrationResult {
 /// A pure-yaw initial guess (e.g. ScanContextMatch::yaw_rad for query = source).
 Eigen::Isometry3d YawGuess(double yaw_rad);
 
+/// A cloud made ready for registration once (downsampled for both stages, search trees, GICP's
+/// local covariances), so a keyframe that is in several candidates is prepared only once.
+class PreparedCloud {
+  public:
+    /// Prepares `cloud` for RegisterScans with `config` (validated here).
+    PreparedCloud(const PointCloud& cloud, const RegistrationConfig& config);
+    ~PreparedCloud();
+    PreparedCloud(const PreparedCloud&) = delete;
+    PreparedCloud& operator=(const PreparedCloud&) = delete;
+
+    struct Stage;  ///< one stage's cloud, tree and covariances (PCL types: registration.cpp)
+    /// The fine stage's data.
+    const Stage& Fine() const { return *fine_; }
+    /// The coarse stage's data; null without a coarse stage or with fewer than min_points.
+    const Stage* Coarse() const { return coarse_.get(); }
+    /// Points after the fine stage's downsampling.
+    int NumFinePoints() const;
+    /// True when prepared with the settings RegisterScans uses from `config`.
+    bool PreparedFor(const RegistrationConfig& config) const;
+
+  private:
+    double voxel_m_ = 0.0, coarse_voxel_m_ = 0.0;
+    int covariance_neighbours_ = 0, min_points_ = 0;
+    std::unique_ptr<Stage> fine_, coarse_;
+};
+
 /// Registers `source` onto `target` (both in their sensor frames) from `T_target_source_guess`:
 /// voxel downsampling, a coarse then a fine GICP stage, then fitness, point-to-plane Hessian,
 /// degeneracy check and information. Never throws on bad geometry: the status says.
 RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& target,
+                                 const Eigen::Isometry3d& T_target_source_guess,
+                                 const RegistrationConfig& config);
+
+/// RegisterScans on clouds prepared with `config` (the same result, without preparing again).
+RegistrationResult RegisterScans(const PreparedCloud& source, const PreparedCloud& target,
                                  const Eigen::Isometry3d& T_target_source_guess,
                                  const RegistrationConfig& config);
 

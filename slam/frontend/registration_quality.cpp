@@ -71,9 +71,17 @@ Matrix6 FloorCovariance(const Matrix6& information, const RegistrationConfig& co
 RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const PointCloud& target,
                                              const RegistrationConfig& config,
                                              RegistrationResult& result) {
-    using Status = RegistrationResult::Status;
     CERTISLAM_CHECK(!target.empty());
     const PointKdTree tree(target);
+    return EvaluateAlignment(source, target, tree, config, result);
+}
+
+RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const PointCloud& target,
+                                             const PointKdTree& tree,
+                                             const RegistrationConfig& config,
+                                             RegistrationResult& result) {
+    using Status = RegistrationResult::Status;
+    CERTISLAM_CHECK(!target.empty());
     TargetNormals normals(target, tree, config.covariance_neighbours);
     const Eigen::Isometry3f T = result.T_target_source.cast<float>();
     const float gate = static_cast<float>(config.inlier_distance_m * config.inlier_distance_m);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "slam/core/keyframe.h"
+#include "slam/frontend/point_kdtree.h"
 #include "slam/frontend/registration.h"
 
 namespace certislam::slam {
@@ -13,6 +14,12 @@ namespace certislam::slam {
 /// except status/converged, and returns the status the quality tests give (kAccepted if all
 /// pass).
 RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const PointCloud& target,
+                                             const RegistrationConfig& config,
+                                             RegistrationResult& result);
+
+/// EvaluateAlignment with a tree over `target` already built.
+RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const PointCloud& target,
+                                             const PointKdTree& target_tree,
                                              const RegistrationConfig& config,
                                              RegistrationResult& result);
 

@@ -194,6 +194,31 @@ TEST(Registration, EmptyCloudIsTooFewPoints) {
     EXPECT_EQ(r.status, RegistrationResult::Status::kTooFewPoints);
 }
 
+// Prepared clouds reused across registrations (as the loop matcher keeps them) give what
+// registering the raw clouds gives, both ways round.
+TEST(Registration, PreparedCloudsReusedGiveTheSameResult) {
+    const PointCloud a = Load("hdl_pair_fast_gicp/251370668.pcd");
+    const PointCloud b = Load("hdl_pair_fast_gicp/251371071.pcd");
+    RegistrationConfig config;
+    config.voxel_m = 0.4;
+    const PreparedCloud prepared_a(a, config), prepared_b(b, config);
+    EXPECT_TRUE(prepared_a.PreparedFor(config));
+    for (int round = 0; round < 2; ++round) {
+        const auto I = Eigen::Isometry3d::Identity();
+        const RegistrationResult plain = RegisterScans(b, a, I, config);
+        const RegistrationResult prepared = RegisterScans(prepared_b, prepared_a, I, config);
+        EXPECT_EQ(prepared.status, plain.status);
+        EXPECT_TRUE(prepared.T_target_source.isApprox(plain.T_target_source, 1e-12));
+        EXPECT_DOUBLE_EQ(prepared.fitness, plain.fitness);
+        EXPECT_DOUBLE_EQ(prepared.tau, plain.tau);
+        const RegistrationResult back = RegisterScans(prepared_a, prepared_b, I, config);
+        EXPECT_TRUE(
+            back.T_target_source.isApprox(RegisterScans(a, b, I, config).T_target_source, 1e-12));
+    }
+    config.voxel_m = 0.3;
+    EXPECT_FALSE(prepared_a.PreparedFor(config));
+}
+
 TEST(Downsample, VoxelCountMatchesReadmeWithinFewPercent) {
     const PointCloud scan = Load("mulran_kaist03_keyframes/Scans/000000.pcd");
     const PointCloud down = VoxelDownsample(scan, 0.2);

@@ -51,6 +51,10 @@ void MapperConfig::Validate() const {
         throw std::invalid_argument("MapperConfig.zstd_level = " + std::to_string(zstd_level) +
                                     ": must be in [0, 19]");
     }
+    if (share_sdf_bits != 8 && share_sdf_bits != 16 && share_sdf_bits != 32) {
+        throw std::invalid_argument("MapperConfig.share_sdf_bits = " +
+                                    std::to_string(share_sdf_bits) + ": must be 8, 16 or 32");
+    }
     if (active_submap_quiet.count() < 0) {
         throw std::invalid_argument(
             "MapperConfig.active_submap_quiet = " + std::to_string(active_submap_quiet.count()) +
@@ -218,8 +222,8 @@ void MapperActor::Publish() {
         *update.mutable_t_world_anchor() = ToProto(s.T_world_submap);
         update.set_voxel_size_m(static_cast<float>(s.volume.config().voxel_size_m));
         std::vector<transport::SharedBuffer> frames;
-        if (dirty) {  // the submap bytes hold raw voxels (tsdf_serialize.h): zstd packs them
-            const std::string raw = slam::SerializeSubmap(s);
+        if (dirty) {  // the submap bytes hold voxels (tsdf_serialize.h): zstd packs them
+            const std::string raw = slam::SerializeSubmap(s, config_.share_sdf_bits);
             const std::string payload =
                 config_.zstd_level > 0 ? Compress(raw, config_.zstd_level) : raw;
             update.set_kind(v1::MAP_PAYLOAD_KIND_TSDF_BLOCKS);

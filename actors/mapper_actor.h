@@ -44,6 +44,10 @@ struct MapperConfig {
     /// zstd level of submap payloads on the wire, [0, 19] (0: uncompressed). The submap bytes
     /// hold raw voxels (masks and byte-planed floats), which zstd 3 about halves.
     int zstd_level = 3;
+    /// Bits of a shared submap's distances (slam::SerializeSubmap): 32, lossless floats; 16 or 8,
+    /// quantised (weights to one byte), which a peer's mesh does not see at 16 and sees as
+    /// at most half a step of 1/127 of the largest distance at 8.
+    int share_sdf_bits = 16;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;

@@ -306,6 +306,12 @@ std::vector<ConfigKey> MappingAndNetworkKeys() {
             "mapping.zstd_level",
             [](TeamConfig & c, int) -> auto& { return c.node.mapper.zstd_level; }, {0.0, 19.0},
             "zstd level of shared submaps"),
+        Choice<int>(
+            "mapping.share_sdf",
+            [](TeamConfig & c, int) -> auto& { return c.node.mapper.share_sdf_bits; },
+            {{"int16", 16}, {"int8", 8}, {"lossless", 32}},
+            "distances of shared submaps: quantised to 16 or 8 bits (weights to 8), or lossless "
+            "floats"),
         Choice<TeamMap>(
             "mapping.team_map", [](TeamConfig & c, int) -> auto& { return c.node.mapper.team_map; },
             {{"anchor", TeamMap::kAnchor}, {"all", TeamMap::kAll}, {"none", TeamMap::kNone}},

@@ -196,7 +196,7 @@ struct Header {
 
 }  // namespace
 
-std::string SerializeSubmap(const Submap& submap) {
+std::string SerializeSubmap(const Submap& submap, int sdf_bits) {
     Header h{};
     std::memcpy(h.magic, kMagic, sizeof kMagic);
     h.robot = submap.id.robot;
@@ -215,7 +215,7 @@ std::string SerializeSubmap(const Submap& submap) {
         const std::int32_t v = k;
         out.append(reinterpret_cast<const char*>(&v), sizeof v);
     }
-    return out + submap.volume.Serialize();
+    return out + submap.volume.Serialize(sdf_bits);
 }
 
 std::optional<Submap> DeserializeSubmap(std::string_view bytes, std::string* error, bool packed) {

@@ -139,8 +139,8 @@ class TsdfMap {
 };
 
 /// The bytes of `submap` (what a robot sends a peer): ids, anchor pose, keyframe list
-/// and the volume's voxels (tsdf_serialize.h's checked format). Lossless.
-std::string SerializeSubmap(const Submap& submap);
+/// and the volume's voxels (TsdfVolume::Serialize: lossless with sdf_bits 32, else quantised).
+std::string SerializeSubmap(const Submap& submap, int sdf_bits = 32);
 
 /// Parses SerializeSubmap's bytes. Untrusted input: returns nullopt and sets `*error` naming
 /// what was wrong. With `packed`, the volume keeps the received bytes (TsdfVolume::Pack).

@@ -477,8 +477,12 @@ bool TsdfVolume::SameVoxels(const TsdfVolume& other) const {
     return SameTsdfVoxels(Readable(*impl_, &a), Readable(*other.impl_, &b));
 }
 
-std::string TsdfVolume::Serialize() const {
-    return impl_->IsPacked() ? ZstdUnpack(impl_->packed) : SerializeTsdf(*impl_);
+std::string TsdfVolume::Serialize(int sdf_bits) const {
+    if (!impl_->IsPacked()) return SerializeTsdf(*impl_, sdf_bits);
+    std::string bytes = ZstdUnpack(impl_->packed);
+    if (sdf_bits == 32 && IsLosslessTsdfBytes(bytes)) return bytes;
+    std::unique_ptr<Impl> decoded;
+    return SerializeTsdf(Readable(*impl_, &decoded), sdf_bits);
 }
 
 std::optional<TsdfVolume> TsdfVolume::Deserialize(std::string_view bytes, std::string* error) {

@@ -133,9 +133,10 @@ class TsdfVolume {
     /// True when both volumes hold the same voxels with bit-identical values and settings.
     bool SameVoxels(const TsdfVolume& other) const;
 
-    /// Lossless bytes of the settings and the active voxels (tsdf_serialize.h's checked format,
-    /// uncompressed: Pack and the mapper's wire add zstd).
-    std::string Serialize() const;
+    /// Bytes of the settings and the active voxels (tsdf_serialize.h's checked format,
+    /// uncompressed: Pack and the mapper's wire add zstd). sdf_bits 32: lossless; 16 or 8:
+    /// quantised (each value moves by at most half its step), as a mapper's peers get them.
+    std::string Serialize(int sdf_bits = 32) const;
 
     /// Parses Serialize's bytes. Untrusted input: returns nullopt and sets `*error` on failure.
     static std::optional<TsdfVolume> Deserialize(std::string_view bytes, std::string* error);

@@ -23,6 +23,8 @@ using Mask = std::array<std::uint64_t, kTsdfMaskWords>;
 static_assert(Leaf::DIM == 8 && Leaf::SIZE == 64 * kTsdfMaskWords);
 
 constexpr char kMagic[8] = {'C', 'S', 'T', 'S', 'D', 'F', '0', '3'};
+constexpr char kMagicQuantised[8] = {'C', 'S', 'T', 'S', 'D', 'F', 'Q', '3'};
+constexpr int kWeightLevels = 255;  // a quantised weight is one byte
 
 // The settings as a fixed little-endian header (the voxels carry no TsdfConfig).
 struct Header {
@@ -220,16 +222,17 @@ std::string ReadLeaves(Reader& in, std::size_t count, std::vector<openvdb::Coord
 
 // Distances finite; weights finite, in [0, max_weight]. Returns "" or the refusal.
 std::string CheckValues(const std::vector<float>& sdf, const std::vector<float>& weight,
-                        float max_weight, std::size_t sdf_at) {
+                        float max_weight, std::size_t sdf_at, std::size_t sdf_bytes) {
     const std::size_t n = sdf.size();
     for (std::size_t i = 0; i < n; ++i) {
         if (!std::isfinite(sdf[i])) {
             return At(sdf_at, "distance of active voxel " + std::to_string(i) + " is not finite");
         }
         if (!(weight[i] >= 0.0f && weight[i] <= max_weight)) {
-            return At(sdf_at + 4 * n, "weight of active voxel " + std::to_string(i) + " = " +
-                                          std::to_string(weight[i]) + ": must be in [0, " +
-                                          std::to_string(max_weight) + "]");
+            return At(sdf_at + sdf_bytes * n, "weight of active voxel " + std::to_string(i) +
+                                                  " = " + std::to_string(weight[i]) +
+                                                  ": must be in [0, " + std::to_string(max_weight) +
+                                                  "]");
         }
     }
     return "";
@@ -253,31 +256,145 @@ void BuildGrids(TsdfVolume::Impl& impl, const TsdfVoxelList& list) {
     }
 }
 
-// The voxels after the header (tsdf_serialize.h's layout) into `impl`. Returns "" or the refusal.
-std::string ReadVoxels(Reader& in, TsdfVoxelList& list) {
+// Quantised values: distances as signed `bits`-bit multiples of sdf_step (byte-planed), then
+// weights as one-byte multiples of weight_step (tsdf_serialize.h). Returns "" or the refusal.
+std::string ReadQuantised(Reader& in, int bits, float sdf_step, float weight_step,
+                          std::size_t active, TsdfVoxelList& list) {
+    const std::size_t bytes = std::size_t(bits) / 8;
+    const std::int32_t qmax = (1 << (bits - 1)) - 1;
+    list.sdf.resize(active);
+    list.weight.resize(active);
+    const auto* p = reinterpret_cast<const unsigned char*>(in.here());
+    for (std::size_t i = 0; i < active; ++i) {
+        std::uint32_t u = 0;
+        for (std::size_t b = 0; b < bytes; ++b) u |= std::uint32_t(p[b * active + i]) << (8 * b);
+        const std::int32_t q = bits == 8 ? std::int32_t(std::int8_t(u)) : std::int16_t(u);
+        if (q < -qmax) {
+            return At(in.offset() + i, "distance of active voxel " + std::to_string(i) + " is " +
+                                           std::to_string(q) + " steps: at least -" +
+                                           std::to_string(qmax));
+        }
+        list.sdf[i] = float(q) * sdf_step;
+        list.weight[i] = float(p[bytes * active + i]) * weight_step;
+    }
+    in.Skip((bytes + 1) * active);
+    return "";
+}
+
+// The voxels after the header (tsdf_serialize.h's layouts) into `list`. Returns "" or the
+// refusal.
+std::string ReadVoxels(Reader& in, bool quantised, TsdfVoxelList& list) {
+    int bits = 32;
+    float sdf_step = 0.0f, weight_step = 0.0f;
+    if (quantised) {
+        if (in.left() < 12) return At(in.offset(), "truncated quantisation settings");
+        const std::size_t at = in.offset();
+        const std::uint32_t b = in.Take<std::uint32_t>();
+        if (b != 8 && b != 16) {
+            return At(at, "distance bits " + std::to_string(b) + ": must be 8 or 16");
+        }
+        bits = int(b);
+        sdf_step = in.Take<float>();
+        weight_step = in.Take<float>();
+        if (!(std::isfinite(sdf_step) && sdf_step >= 0.0f && std::isfinite(weight_step) &&
+              weight_step >= 0.0f)) {
+            return At(at + 4, "quantisation steps must be finite and >= 0");
+        }
+    }
+    const std::size_t value_bytes = quantised ? std::size_t(bits) / 8 + 1 : 8;
     if (in.left() < sizeof(std::uint64_t)) return At(in.offset(), "truncated leaf count");
     const std::size_t count_at = in.offset();
     const std::uint64_t count = in.Take<std::uint64_t>();
-    if (count > in.left() / kTsdfMinLeafBytes) {
+    if (count > in.left() / (kTsdfLeafBytes + value_bytes)) {
         return At(count_at, "leaf count " + std::to_string(count) + " needs at least " +
-                                std::to_string(kTsdfMinLeafBytes) + " bytes a leaf, " +
+                                std::to_string(kTsdfLeafBytes + value_bytes) + " bytes a leaf, " +
                                 std::to_string(in.left()) + " left");
     }
     std::size_t active = 0;
     if (std::string e = ReadLeaves(in, count, &list.origins, &list.masks, &active); !e.empty()) {
         return e;
     }
-    if (in.left() / 8 < active || in.left() != 8 * active) {
+    if (in.left() / value_bytes < active || in.left() != value_bytes * active) {
         return At(in.offset(), std::to_string(active) + " active voxels need " +
-                                   std::to_string(8 * active) + " bytes of values, length " +
-                                   std::to_string(in.left()) + " left");
+                                   std::to_string(value_bytes * active) +
+                                   " bytes of values, length " + std::to_string(in.left()) +
+                                   " left");
     }
     const std::size_t sdf_at = in.offset();
-    list.sdf = ReadShuffled(in.here(), active);
-    in.Skip(4 * active);
-    list.weight = ReadShuffled(in.here(), active);
-    in.Skip(4 * active);
-    return CheckValues(list.sdf, list.weight, list.config.max_weight, sdf_at);
+    if (quantised) {
+        if (std::string e = ReadQuantised(in, bits, sdf_step, weight_step, active, list);
+            !e.empty()) {
+            return e;
+        }
+    } else {
+        list.sdf = ReadShuffled(in.here(), active);
+        in.Skip(4 * active);
+        list.weight = ReadShuffled(in.here(), active);
+        in.Skip(4 * active);
+    }
+    return CheckValues(list.sdf, list.weight, list.config.max_weight, sdf_at,
+                       quantised ? std::size_t(bits) / 8 : 4);
+}
+
+// The active voxels of `impl` in leaf and mask order (the layouts' order).
+TsdfVoxelList CollectVoxels(const TsdfVolume::Impl& impl) {
+    TsdfVoxelList list;
+    list.config = impl.config;
+    for (auto it = impl.weight->tree().cbeginLeaf(); it; ++it) {
+        if (it->isEmpty()) continue;  // no active voxel: nothing observed (never made so)
+        const Leaf* s_leaf = impl.sdf->tree().probeConstLeaf(it->origin());
+        CERTISLAM_CHECK(s_leaf != nullptr);  // both grids are touched together
+        list.origins.push_back(it->origin());
+        const auto& mask = it->getValueMask();
+        Mask& m = list.masks.emplace_back();
+        for (openvdb::Index w = 0; w < kTsdfMaskWords; ++w) m[w] = mask.getWord<std::uint64_t>(w);
+        for (auto on = mask.beginOn(); on; ++on) {
+            list.sdf.push_back(s_leaf->getValue(on.pos()));
+            list.weight.push_back(it->getValue(on.pos()));
+        }
+    }
+    return list;
+}
+
+void AppendLeaves(std::string& out, const TsdfVoxelList& list) {
+    Append(out, std::uint64_t{list.origins.size()});
+    for (const openvdb::Coord& o : list.origins) {
+        for (int a = 0; a < 3; ++a) Append(out, std::int32_t{o[a]});
+    }
+    for (const Mask& m : list.masks) {
+        for (const std::uint64_t w : m) Append(out, w);
+    }
+}
+
+float MaxAbs(const std::vector<float>& values) {
+    float m = 0.0f;
+    for (const float v : values) m = std::max(m, std::abs(v));
+    return m;
+}
+
+// The quantised layout's voxel section: each value the nearest multiple of its step (a positive
+// weight at least one step), the steps chosen so that the largest value fits.
+void AppendQuantised(std::string& out, const TsdfVoxelList& list, int bits) {
+    const std::int32_t qmax = (1 << (bits - 1)) - 1;
+    const float sdf_step = MaxAbs(list.sdf) / float(qmax);
+    float weight_step = MaxAbs(list.weight) / float(kWeightLevels);
+    while (weight_step * float(kWeightLevels) > list.config.max_weight) {  // a reader's bound
+        weight_step = std::nextafter(weight_step, 0.0f);
+    }
+    Append(out, std::uint32_t(bits));
+    Append(out, sdf_step);
+    Append(out, weight_step);
+    AppendLeaves(out, list);
+    const std::size_t n = list.sdf.size(), bytes = std::size_t(bits) / 8, base = out.size();
+    out.resize(base + (bytes + 1) * n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const long q = sdf_step > 0.0f ? std::lround(list.sdf[i] / sdf_step) : 0;
+        const auto u = std::uint32_t(std::clamp<long>(q, -qmax, qmax));
+        for (std::size_t b = 0; b < bytes; ++b) out[base + b * n + i] = char(u >> (8 * b) & 0xff);
+        long w = weight_step > 0.0f ? std::lround(list.weight[i] / weight_step) : 0;
+        if (list.weight[i] > 0.0f) w = std::max(w, 1L);
+        out[base + bytes * n + i] = char(std::min<long>(w, kWeightLevels));
+    }
 }
 
 }  // namespace
@@ -287,37 +404,27 @@ bool SameTsdfVoxels(const TsdfVolume::Impl& a, const TsdfVolume::Impl& b) {
            a.weight->activeVoxelCount() == b.weight->activeVoxelCount() && Contains(a, b);
 }
 
-std::string SerializeTsdf(const TsdfVolume::Impl& impl) {
-    std::vector<const Leaf*> w_leaves, s_leaves;
-    for (auto it = impl.weight->tree().cbeginLeaf(); it; ++it) {
-        if (it->isEmpty()) continue;  // no active voxel: nothing observed (never made so)
-        w_leaves.push_back(&*it);
-        s_leaves.push_back(impl.sdf->tree().probeConstLeaf(it->origin()));
-        CERTISLAM_CHECK(s_leaves.back() != nullptr);  // both grids are touched together
-    }
+std::string SerializeTsdf(const TsdfVolume::Impl& impl, int sdf_bits) {
+    CERTISLAM_CHECK(sdf_bits == 8 || sdf_bits == 16 || sdf_bits == 32);
+    const TsdfVoxelList list = CollectVoxels(impl);
     std::string voxels;
-    Append(voxels, std::uint64_t{w_leaves.size()});
-    for (const Leaf* leaf : w_leaves) {
-        for (int a = 0; a < 3; ++a) Append(voxels, std::int32_t{leaf->origin()[a]});
+    if (sdf_bits == 32) {
+        AppendLeaves(voxels, list);
+        AppendShuffled(voxels, list.sdf);
+        AppendShuffled(voxels, list.weight);
+    } else {
+        AppendQuantised(voxels, list, sdf_bits);
     }
-    std::vector<float> sdf, weight;
-    for (std::size_t l = 0; l < w_leaves.size(); ++l) {
-        const auto& mask = w_leaves[l]->getValueMask();
-        for (openvdb::Index w = 0; w < kTsdfMaskWords; ++w) {
-            Append(voxels, mask.getWord<std::uint64_t>(w));
-        }
-        for (auto on = mask.beginOn(); on; ++on) {
-            sdf.push_back(s_leaves[l]->getValue(on.pos()));
-            weight.push_back(w_leaves[l]->getValue(on.pos()));
-        }
-    }
-    AppendShuffled(voxels, sdf);
-    AppendShuffled(voxels, weight);
     Header h = HeaderOf(impl.config);
+    if (sdf_bits != 32) std::memcpy(h.magic, kMagicQuantised, sizeof kMagicQuantised);
     h.voxel_bytes = voxels.size();
     std::string out(sizeof h, '\0');
     std::memcpy(out.data(), &h, sizeof h);
     return out + voxels;
+}
+
+bool IsLosslessTsdfBytes(std::string_view bytes) {
+    return bytes.size() >= sizeof kMagic && std::memcmp(bytes.data(), kMagic, sizeof kMagic) == 0;
 }
 
 std::optional<TsdfVoxelList> DecodeTsdfVoxels(std::string_view bytes, std::string* error) {
@@ -328,7 +435,10 @@ std::optional<TsdfVoxelList> DecodeTsdfVoxels(std::string_view bytes, std::strin
     Header h;
     if (bytes.size() < sizeof h) return fail(At(bytes.size(), "truncated header"));
     std::memcpy(&h, bytes.data(), sizeof h);
-    if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0) return fail(At(0, "bad magic"));
+    const bool quantised = std::memcmp(h.magic, kMagicQuantised, sizeof kMagicQuantised) == 0;
+    if (!quantised && std::memcmp(h.magic, kMagic, sizeof kMagic) != 0) {
+        return fail(At(0, "bad magic"));
+    }
     if (h.voxel_bytes != bytes.size() - sizeof h) {
         return fail(At(offsetof(Header, voxel_bytes),
                        "voxel length " + std::to_string(h.voxel_bytes) + " does not match the " +
@@ -346,7 +456,7 @@ std::optional<TsdfVoxelList> DecodeTsdfVoxels(std::string_view bytes, std::strin
     }
     Reader in(bytes);
     in.Skip(sizeof h);
-    if (std::string e = ReadVoxels(in, list); !e.empty()) return fail(e);
+    if (std::string e = ReadVoxels(in, quantised, list); !e.empty()) return fail(e);
     return list;
 }
 

@@ -6,6 +6,12 @@
 // active masks (8 x uint64; bit i of word w is voxel 64 w + i of the 8^3 leaf, x-major), then
 // the distances and then the weights of the A active voxels in leaf and mask order (A float32
 // each, stored byte-plane by byte-plane). Inactive voxels hold the backgrounds.
+//
+// The quantised layout (magic "CSTSDFQ3", what a mapper sends its peers) has the same header and
+// then: the distance bits b (uint32, 8 or 16), the distance step and the weight step (float32
+// each), the leaves as above, the A distances as signed b-bit multiples of the distance step
+// (byte-planed) and the A weights as uint8 multiples of the weight step. Quantisation moves a
+// value by at most half its step; a voxel with weight > 0 keeps a weight > 0.
 #pragma once
 
 #include <array>
@@ -22,8 +28,8 @@ namespace certislam::slam {
 
 inline constexpr std::size_t kTsdfHeaderBytes = 80;  ///< the fixed header
 inline constexpr std::size_t kTsdfMaskWords = 8;     ///< 64-bit words of a leaf's active mask
-/// A leaf's least bytes: origin, mask and the two values of its (at least one) active voxel.
-inline constexpr std::size_t kTsdfMinLeafBytes = 12 + 8 * kTsdfMaskWords + 8;
+/// A leaf's least bytes before its values: origin and mask.
+inline constexpr std::size_t kTsdfLeafBytes = 12 + 8 * kTsdfMaskWords;
 /// Leaf origins beyond this many voxels from the volume's origin are refused (2^24: 168 km at
 /// the smallest voxel, 0.01 m).
 inline constexpr std::int32_t kTsdfMaxOriginVoxels = 1 << 24;
@@ -57,8 +63,12 @@ struct TsdfVoxelList {
 /// True when both hold the same voxels with bit-identical values and settings.
 bool SameTsdfVoxels(const TsdfVolume::Impl& a, const TsdfVolume::Impl& b);
 
-/// The grids and settings of `impl` as bytes (the layout above).
-std::string SerializeTsdf(const TsdfVolume::Impl& impl);
+/// The grids and settings of `impl` as bytes: sdf_bits 32, the lossless layout; 16 or 8, the
+/// quantised one (steps: the largest |distance| over 2^(b-1) - 1, the largest weight over 255).
+std::string SerializeTsdf(const TsdfVolume::Impl& impl, int sdf_bits = 32);
+
+/// True when `bytes` start with the lossless layout's magic.
+bool IsLosslessTsdfBytes(std::string_view bytes);
 
 /// Parses SerializeTsdf's bytes. Untrusted input: every count is checked against the bytes left
 /// before allocating, every value (finite; weight in [0, max_weight]) and origin (aligned,

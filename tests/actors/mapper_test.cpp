@@ -184,6 +184,21 @@ TEST(MapperConfig, RejectsANegativeActiveSubmapQuiet) {
     EXPECT_THROW(config.Validate(), std::invalid_argument);
 }
 
+TEST(MapperConfig, RejectsDistanceBitsOtherThan8_16Or32) {
+    MapperConfig config;
+    config.share_sdf_bits = 12;
+    try {
+        config.Validate();
+        FAIL() << "12 bits accepted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("share_sdf_bits = 12"), std::string::npos);
+    }
+    for (const int bits : {8, 16, 32}) {
+        config.share_sdf_bits = bits;
+        EXPECT_NO_THROW(config.Validate());
+    }
+}
+
 /// Robot 1's wall as one serialized submap, zstd-compressed, in a MapUpdate that says so.
 transport::Message CompressedWallUpdate(std::uint64_t declared_size) {
     slam::TsdfMap map(1);

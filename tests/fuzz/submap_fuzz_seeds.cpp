@@ -54,9 +54,11 @@ int main(int argc, char** argv) {
         submap.volume.Integrate(Room(), pose);
         pose.translation().x() = 0.3;
         submap.volume.Integrate(Room(), pose);
-        std::ofstream(std::string(argv[1]) + "/submap" + std::to_string(written++) + ".bin",
-                      std::ios::binary)
-            << SerializeSubmap(submap);
+        for (const int bits : {32, 8}) {  // lossless, and quantised as a mapper sends it
+            std::ofstream(std::string(argv[1]) + "/submap" + std::to_string(written++) + ".bin",
+                          std::ios::binary)
+                << SerializeSubmap(submap, bits);
+        }
     }
     std::printf("%d submap seeds in %s\n", written, argv[1]);
     return 0;

@@ -75,7 +75,9 @@ TEST(TsdfQuantised, KeepsEveryVoxelAndMovesEachValueByAtMostHalfAStep) {
         for (std::size_t i = 0; i < q.sdf.size(); ++i) {
             sdf_err = std::max(sdf_err, double(std::abs(q.sdf[i] - exact.sdf[i])));
             weight_err = std::max(weight_err, double(std::abs(q.weight[i] - exact.weight[i])));
-            if (exact.weight[i] > 0.0f) EXPECT_GT(q.weight[i], 0.0f) << "voxel " << i;
+            if (exact.weight[i] > 0.0f) {
+                EXPECT_GT(q.weight[i], 0.0f) << "voxel " << i;
+            }
         }
         // half a step, plus the float rounding of q * step at the largest distance
         const double ulp = std::numeric_limits<float>::epsilon() * MaxAbs(exact.sdf);

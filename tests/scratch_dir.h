@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -36,6 +37,13 @@ inline std::filesystem::path ScratchDir() {
     std::filesystem::create_directories(dir);
     if (cleaner.dirs.empty() || cleaner.dirs.back() != dir) cleaner.dirs.push_back(dir);
     return dir;
+}
+
+/// Writes `text` (bytes as they are) to ScratchDir() / name; returns the path.
+inline std::string WriteScratch(const std::string& name, const std::string& text) {
+    const std::string path = (ScratchDir() / name).string();
+    std::ofstream(path, std::ios::binary) << text;
+    return path;
 }
 
 }  // namespace certislam::testing

@@ -17,16 +17,9 @@ namespace {
 
 using certislam::testing::Shell;
 using certislam::testing::ShellResult;
+using certislam::testing::WriteScratch;
 
 constexpr double kTinyGridFStar = 18.5193868731;  ///< data/g2o/README.md
-
-std::string Write(const std::string& name, const std::string& text) {
-    const auto dir = certislam::testing::ScratchDir();
-    std::filesystem::create_directories(dir);
-    const std::string path = (dir / name).string();
-    std::ofstream(path, std::ios::binary) << text;
-    return path;
-}
 
 ShellResult Certislam(const std::string& args) {
     return Shell(std::string(CERTISLAM_BINARY) + " " + args + " 2>&1");
@@ -45,9 +38,9 @@ TEST(HostileInput, RegisterOnOverflowingPcdExitsOneNamingTheFile) {
         types += " F";
         counts += " 1048576";
     }
-    const std::string pcd =
-        Write("overflow.pcd", fields + "\n" + sizes + "\n" + types + "\n" + counts +
-                                  "\nPOINTS 134217728\nDATA binary\n" + std::string(64, '\0'));
+    const std::string pcd = WriteScratch(
+        "overflow.pcd", fields + "\n" + sizes + "\n" + types + "\n" + counts +
+                            "\nPOINTS 134217728\nDATA binary\n" + std::string(64, '\0'));
     const ShellResult r = Certislam("register " + pcd + " " + pcd);
     EXPECT_EQ(r.exit_code, 1) << r.out;
     EXPECT_NE(r.out.find(pcd + ":6: binary data at byte"), std::string::npos) << r.out;
@@ -66,7 +59,8 @@ TEST(HostileInput, SolveRefusesNonUnitQuaternionsWithFileAndLine) {
             if (k >= 6 && k <= 9) tok = std::to_string(std::stod(tok) * std::stod(norm));
             line += (k ? " " : "") + tok;
         }
-        const std::string path = Write("q.g2o", text.substr(0, at) + line + text.substr(end));
+        const std::string path =
+            WriteScratch("q.g2o", text.substr(0, at) + line + text.substr(end));
         const int line_no = 1 + static_cast<int>(std::count(text.begin(), text.begin() + at, '\n'));
         for (const char* method : {"rbcd", "lm"}) {
             const ShellResult r = Certislam("solve " + path + " --method " + method);
@@ -80,9 +74,9 @@ TEST(HostileInput, SolveRefusesNonUnitQuaternionsWithFileAndLine) {
 
 TEST(HostileInput, RobustSolveRejectsA500mLoopKeepsOdometryAndCertifies) {
     const std::string path =
-        Write("outlier.g2o", TinyGridText() +
-                                 "EDGE_SE3:QUAT 0 8 500 0 0 0 0 0 1 100 0 0 0 0 0 100 0 "
-                                 "0 0 0 100 0 0 0 400 0 0 400 0 400\n");
+        WriteScratch("outlier.g2o", TinyGridText() +
+                                        "EDGE_SE3:QUAT 0 8 500 0 0 0 0 0 1 100 0 0 0 0 0 100 0 "
+                                        "0 0 0 100 0 0 0 400 0 0 400 0 400\n");
     const ShellResult r =
         Shell(std::string(CERTISLAM_BINARY) + " solve " + path + " --robust --json 2>/dev/null");
     // The inlier graph GNC kept is solved and certified (exit 0).

@@ -16,18 +16,13 @@ namespace {
 
 using certislam::testing::Shell;
 using certislam::testing::ShellResult;
+using certislam::testing::WriteScratch;
 
 /// Distributed vs in-process cost (as in solve_distributed_test.cpp).
 constexpr double kRelCost = 1e-6;
 
 std::string Data(const std::string& name) {
     return std::string(CERTISLAM_DATA_DIR) + "/g2o/" + name;
-}
-
-std::string Write(const std::string& name, const std::string& text) {
-    const auto path = (certislam::testing::ScratchDir() / name).string();
-    std::ofstream(path) << text;
-    return path;
 }
 
 nlohmann::json Json(const std::string& args) {
@@ -56,13 +51,13 @@ TEST(LeanRobot, TwoProcessesOverTcpCertifyAndWriteTheirReports) {
     const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --quiet");
     const auto out = certislam::testing::ScratchDir() / "out";
     std::filesystem::create_directories(out);
-    const std::string config = Write("tcp.yaml",
-                                     "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
-                                     "  graph: " +
-                                         Data("smallGrid3D.g2o") +
-                                         "\nnetwork:\n"
-                                         "  0: {host: 127.0.0.1, base_port: 27910}\n"
-                                         "  1: {host: 127.0.0.1, base_port: 27920}\n");
+    const std::string config = WriteScratch("tcp.yaml",
+                                            "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
+                                            "  graph: " +
+                                                Data("smallGrid3D.g2o") +
+                                                "\nnetwork:\n"
+                                                "  0: {host: 127.0.0.1, base_port: 27910}\n"
+                                                "  1: {host: 127.0.0.1, base_port: 27920}\n");
     const std::string robot =
         std::string(CERTISLAM_ROBOT_BINARY) + " " + config + " --timeout 120 --out " + out.string();
     const ShellResult r =
@@ -80,11 +75,11 @@ TEST(LeanRobot, TwoProcessesOverTcpCertifyAndWriteTheirReports) {
 TEST(LeanRobot, GivesTheRobotCommandsErrorsAndRefusesKeyframeSources) {
     const std::string long_dir(120, 'x');
     const std::string bad_ipc =
-        Write("ipc.yaml",
-              "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
-              "  graph: " +
-                  Data("tinyGrid3D.g2o") + "\nnetwork:\n  0: {ipc_dir: /tmp/" + long_dir +
-                  "}\n  1: {ipc_dir: /tmp}\n");
+        WriteScratch("ipc.yaml",
+                     "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
+                     "  graph: " +
+                         Data("tinyGrid3D.g2o") + "\nnetwork:\n  0: {ipc_dir: /tmp/" + long_dir +
+                         "}\n  1: {ipc_dir: /tmp}\n");
     const ShellResult lean =
         Shell(std::string(CERTISLAM_ROBOT_BINARY) + " " + bad_ipc + " --id 1 --timeout 5 2>&1");
     const ShellResult full =
@@ -95,10 +90,10 @@ TEST(LeanRobot, GivesTheRobotCommandsErrorsAndRefusesKeyframeSources) {
     EXPECT_NE(lean.out.find("certislam-robot: "), std::string::npos) << lean.out;
 
     const std::string keyframes =
-        Write("sim.yaml",
-              "robots: [0, 1]\nsource: {kind: simulator}\nnetwork:\n"
-              "  0: {host: 127.0.0.1, base_port: 27930}\n  1: {host: 127.0.0.1, "
-              "base_port: 27940}\n");
+        WriteScratch("sim.yaml",
+                     "robots: [0, 1]\nsource: {kind: simulator}\nnetwork:\n"
+                     "  0: {host: 127.0.0.1, base_port: 27930}\n  1: {host: 127.0.0.1, "
+                     "base_port: 27940}\n");
     const ShellResult refused =
         Shell(std::string(CERTISLAM_ROBOT_BINARY) + " " + keyframes + " --id 0 2>&1");
     EXPECT_EQ(refused.exit_code, 1) << refused.out;

@@ -16,6 +16,7 @@ namespace {
 
 using certislam::testing::Shell;
 using certislam::testing::ShellResult;
+using certislam::testing::WriteScratch;
 
 /// Distributed vs in-process cost of the file as written (measured rotations that are not unit
 /// quaternions' cross the wire as matrices: the same problem).
@@ -23,14 +24,6 @@ constexpr double kRelCost = 1e-6;
 
 std::string Data(const std::string& name) {
     return std::string(CERTISLAM_DATA_DIR) + "/g2o/" + name;
-}
-
-std::string Write(const std::string& name, const std::string& text) {
-    const auto dir = certislam::testing::ScratchDir();
-    std::filesystem::create_directories(dir);
-    const auto path = (dir / name).string();
-    std::ofstream(path) << text;
-    return path;
 }
 
 nlohmann::json Json(const std::string& args, int expected_exit = 0) {
@@ -130,9 +123,9 @@ std::string PoseGraphConfig(const std::string& ranges) {
 TEST(RunPoseGraph, VertexRangesFromTheConfigCertifyTheOptimum) {
     const auto central = Json("solve " + Data("tinyGrid3D.g2o") + " --quiet");
     const auto team =
-        Json("run " + Write("ranges.yaml", PoseGraphConfig("  ranges:\n"
-                                                           "    0: {begin: 0, end: 3}\n"
-                                                           "    1: {begin: 3, end: 9}\n")));
+        Json("run " + WriteScratch("ranges.yaml", PoseGraphConfig("  ranges:\n"
+                                                                  "    0: {begin: 0, end: 3}\n"
+                                                                  "    1: {begin: 3, end: 9}\n")));
     ASSERT_FALSE(team.is_discarded());
     EXPECT_EQ(team["path"], "distributed");
     EXPECT_EQ(team["verdict"], "certified");
@@ -155,7 +148,7 @@ TEST(RunPoseGraph, BadRangesFailNamingTheKeyPath) {
     };
     for (const auto& c : cases) {
         const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " run " +
-                                    Write("bad.yaml", PoseGraphConfig(c.ranges)) + " 2>&1");
+                                    WriteScratch("bad.yaml", PoseGraphConfig(c.ranges)) + " 2>&1");
         EXPECT_EQ(r.exit_code, 1) << c.ranges << r.out;
         EXPECT_NE(r.out.find(c.error), std::string::npos) << c.ranges << r.out;
     }
@@ -163,15 +156,15 @@ TEST(RunPoseGraph, BadRangesFailNamingTheKeyPath) {
 
 TEST(RobotPoseGraph, TwoProcessesOverTcpCertifyTheInProcessOptimum) {
     const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --quiet");
-    const std::string config = Write("tcp.yaml",
-                                     "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
-                                     "  graph: " +
-                                         Data("smallGrid3D.g2o") +
-                                         "\nnetwork:\n"
-                                         "  0: {host: 127.0.0.1, base_port: 27710}\n"
-                                         "  1: {host: 127.0.0.1, base_port: 27810}\n");
+    const std::string config = WriteScratch("tcp.yaml",
+                                            "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
+                                            "  graph: " +
+                                                Data("smallGrid3D.g2o") +
+                                                "\nnetwork:\n"
+                                                "  0: {host: 127.0.0.1, base_port: 27710}\n"
+                                                "  1: {host: 127.0.0.1, base_port: 27810}\n");
     const std::string robot = std::string(CERTISLAM_BINARY) + " robot " + config;
-    const std::string out1 = Write("robot1.json", "");
+    const std::string out1 = WriteScratch("robot1.json", "");
     const ShellResult r0 = Shell(robot + " --id 1 --json --timeout 120 > " + out1 + " 2>&1 & " +
                                  robot + " --id 0 --json --timeout 120 2>&1; wait");
     std::ifstream in(out1);
@@ -218,7 +211,7 @@ TEST(SolveDistributed, TransportNeedsDistributedAndAnIpcPathMustFit) {
     EXPECT_EQ(r.exit_code, 2) << r.out;
     EXPECT_NE(r.out.find("--transport tcp needs --distributed"), std::string::npos) << r.out;
     const std::string long_dir(120, 'x');
-    const std::string config = Write(
+    const std::string config = WriteScratch(
         "ipc.yaml",
         PoseGraphConfig("network:\n  0: {ipc_dir: /tmp/" + long_dir + "}\n  1: {ipc_dir: /tmp}\n"));
     const ShellResult robot =
@@ -264,7 +257,7 @@ std::string PlanarRing(bool parallel = false) {
 }
 
 TEST(SolveDistributed, APlanarGraphIsSolvedAsItsLiftAndCertifiedInThePlane) {
-    const std::string file = Write("planar_ring.g2o", PlanarRing());
+    const std::string file = WriteScratch("planar_ring.g2o", PlanarRing());
     const auto central = Json("solve " + file + " --quiet");
     ASSERT_EQ(central["verdict"], "certified");
     for (const std::string transport : {"inproc", "ipc"}) {
@@ -283,7 +276,7 @@ TEST(SolveDistributed, APlanarGraphIsSolvedAsItsLiftAndCertifiedInThePlane) {
 /// Parallel edges (the robots hold them merged, slam::MergeParallelEdges): the team, in one
 /// process or as robot processes, certifies the file's optimum and reports the file's cost.
 TEST(SolveDistributed, ParallelEdgesCertifyTheFilesOptimumWithTheFilesCost) {
-    const std::string file = Write("planar_ring_parallel.g2o", PlanarRing(true));
+    const std::string file = WriteScratch("planar_ring_parallel.g2o", PlanarRing(true));
     const auto central = Json("solve " + file + " --quiet");
     ASSERT_EQ(central["verdict"], "certified");
     EXPECT_EQ(central["edges"].get<int>(), 21);

@@ -45,8 +45,8 @@ struct MapperConfig {
     /// hold raw voxels (masks and byte-planed floats), which zstd 3 about halves.
     int zstd_level = 3;
     /// Bits of a shared submap's distances (slam::SerializeSubmap): 32, lossless floats; 16 or 8,
-    /// quantised (weights to one byte), which a peer's mesh does not see at 16 and sees as
-    /// at most half a step of 1/127 of the largest distance at 8.
+    /// quantised (weights to one byte): each distance moves by at most 1/65534 (16) or 1/254 (8)
+    /// of the submap's largest distance.
     int share_sdf_bits = 16;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.

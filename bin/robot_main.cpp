@@ -16,9 +16,8 @@ namespace {
 /// Caps glibc's heap at two arenas (its default is 8 per core: each actor thread that allocates
 /// gets one, whose freed pages stay resident) and serves blocks of 256 KiB and more from mmap
 /// (returned on free; glibc's default threshold grows to 32 MiB after the first such free, after
-/// which the certificate's factorisations fragment the arenas). Measured on sphere2500 in 5 robots
-/// over tcp: the anchor's peak RSS 56 -> 51 MB, the others' 32 -> 28 MB, no slower
-/// (BENCHMARKS.md, "Robots as processes").
+/// which the certificate's factorisations fragment the arenas); BENCHMARKS.md, "Robots as
+/// processes", has the effect on peak RSS.
 void TuneMalloc() {
     mallopt(M_ARENA_MAX, 2);
     mallopt(M_MMAP_THRESHOLD, 256 * 1024);

@@ -1,9 +1,10 @@
 // Loop matcher: brute-force Scan Context over the (strided) pairs this robot owns, gated cloud
-// requests to lower robots (replies downsampled at the registration voxel), GICP verification,
-// PCM, loop closures (and withdrawals) out.
+// requests to lower robots (replies downsampled at the registration voxel), GICP verification on
+// worker threads (verdicts applied in candidate order), PCM, loop closures (and withdrawals) out.
 #include "actors/loop_matcher_actor.h"
 
 #include <algorithm>
+#include <boost/asio/post.hpp>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -42,6 +43,8 @@ void LoopMatcherConfig::Validate() const {
     Require(max_rmse_m > 0, "max_rmse_m", max_rmse_m, "must be > 0");
     Require(place_window >= 0, "place_window", place_window, "must be >= 0");
     Require(prepared_clouds >= 0, "prepared_clouds", prepared_clouds, "must be >= 0");
+    Require(registration_threads >= 1, "registration_threads", registration_threads,
+            "must be >= 1");
     Require(max_candidates_per_query >= 0, "max_candidates_per_query", max_candidates_per_query,
             "must be >= 0");
     pcm.Validate();
@@ -53,7 +56,21 @@ LoopMatcherActor::LoopMatcherActor(zmq::context_t& context, TeamWiring wiring,
     : NodeActor("loop_matcher", context, std::move(wiring)),
       config_(config),
       gate_((config.Validate(), GateConfig(config))),
+      workers_(std::make_unique<boost::asio::thread_pool>(config.registration_threads)),
       pcm_(config.pcm) {}
+
+LoopMatcherActor::~LoopMatcherActor() {
+    Stop();
+    workers_->stop();  // OnStop() runs only if the actor ran
+    workers_->join();
+}
+
+void LoopMatcherActor::OnStop() {
+    workers_->stop();  // registrations not started are dropped; running ones finish
+    workers_->join();
+    registrations_.clear();
+    CloseEndpoints();
+}
 
 void LoopMatcherActor::OnStart() {
     loops_out_ = &OpenServer(Edge::kLoops);
@@ -153,16 +170,18 @@ void LoopMatcherActor::Consider(const slam::LoopCandidate& c) {
         return;
     }
     if (c.match.robot == RobotId()) {
-        Verify(c, *own_clouds_.at(c.match.index));
+        Verify(c, own_clouds_.at(c.match.index));
         return;
     }
+    // A failed registration reopens its place: a windowed gate needs every verdict first.
+    if (config_.place_window > 0) ApplyRegistrations(0);
     switch (gate_.Admit(c)) {
         case slam::CloudRequestGate::Decision::kSkip:
             ++skipped_;
             return;
         case slam::CloudRequestGate::Decision::kRegister:
             if (const auto it = peer_clouds_.find(c.match); it != peer_clouds_.end()) {
-                Verify(c, *it->second);
+                Verify(c, it->second);
             } else {
                 waiting_[c.match].push_back(c);  // its cloud is on the way
             }
@@ -236,18 +255,44 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
     const auto waiting = std::move(waiting_[match]);
     waiting_.erase(match);
     for (const auto& c : waiting) {
-        if (StopRequested()) break;  // each registration is long: a stop does not wait for all
-        Verify(c, *kept);
+        if (StopRequested()) break;  // a full queue waits for a registration: stop sooner
+        Verify(c, kept);
     }
     return true;
 }
 
-void LoopMatcherActor::Verify(const slam::LoopCandidate& c, const slam::PointCloud& match_cloud) {
+void LoopMatcherActor::Verify(const slam::LoopCandidate& c,
+                              const slam::PointCloudPtr& match_cloud) {
+    auto source = Prepared(c.query, own_clouds_.at(c.query.index));
+    auto target = Prepared(c.match, match_cloud);
+    // Prepared clouds are only read while registering (const trees and covariances).
+    auto task = std::make_shared<std::packaged_task<slam::RegistrationResult()>>(
+        [source = std::move(source), target = std::move(target), yaw = c.yaw_rad,
+         config = config_.registration] {
+            return slam::RegisterScans(source->Get(), target->Get(), slam::YawGuess(yaw), config);
+        });
+    // Two queued per thread keep the workers busy; more would hold prepared clouds for nothing.
+    ApplyRegistrations(2 * static_cast<std::size_t>(config_.registration_threads) - 1);
+    registrations_.push_back({c, task->get_future()});
+    boost::asio::post(*workers_, [task] { (*task)(); });
+}
+
+void LoopMatcherActor::ApplyRegistrations(std::size_t at_most) {
+    while (!registrations_.empty()) {
+        auto& front = registrations_.front();
+        if (registrations_.size() <= at_most &&
+            front.result.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+            return;
+        }
+        const slam::LoopCandidate candidate = front.candidate;
+        const slam::RegistrationResult result = front.result.get();
+        registrations_.pop_front();
+        Apply(candidate, result);
+    }
+}
+
+void LoopMatcherActor::Apply(const slam::LoopCandidate& c, const slam::RegistrationResult& result) {
     const slam::PoseId query = c.query, match = c.match;
-    const auto source = Prepared(query, *own_clouds_.at(query.index));
-    const auto target = Prepared(match, match_cloud);
-    const auto result =
-        slam::RegisterScans(*source, *target, slam::YawGuess(c.yaw_rad), config_.registration);
     if (!result.accepted() || result.inlier_rmse_m > config_.max_rmse_m) {
         ++rejected_;
         if (match.robot != RobotId()) gate_.Failed(c);  // the place is open again
@@ -270,15 +315,23 @@ void LoopMatcherActor::Verify(const slam::LoopCandidate& c, const slam::PointClo
     if (pcm_.Add(loop, result.information)) pcm_dirty_ = true;
 }
 
-std::shared_ptr<const slam::PreparedCloud> LoopMatcherActor::Prepared(
-    const slam::PoseId& id, const slam::PointCloud& cloud) {
+const slam::PreparedCloud& LoopMatcherActor::LazyPrepared::Get() {
+    std::call_once(once_, [this] {
+        prepared_ = std::make_unique<const slam::PreparedCloud>(*cloud_, config_);
+        cloud_.reset();
+    });
+    return *prepared_;
+}
+
+std::shared_ptr<LoopMatcherActor::LazyPrepared> LoopMatcherActor::Prepared(
+    const slam::PoseId& id, const slam::PointCloudPtr& cloud) {
     const auto order = std::find(prepared_order_.begin(), prepared_order_.end(), id);
     if (order != prepared_order_.end()) {  // used again: now the latest
         prepared_order_.erase(order);
         prepared_order_.push_back(id);
         return prepared_.at(id);
     }
-    auto prepared = std::make_shared<const slam::PreparedCloud>(cloud, config_.registration);
+    auto prepared = std::make_shared<LazyPrepared>(cloud, config_.registration);
     if (config_.prepared_clouds == 0) return prepared;
     if (static_cast<int>(prepared_order_.size()) >= config_.prepared_clouds) {
         prepared_.erase(prepared_order_.front());
@@ -336,8 +389,9 @@ void LoopMatcherActor::Tick() {
         p.sent = now;
         RequestCloud(id, p);  // the peer was silent or not there yet
     }
+    ApplyRegistrations(registrations_.size());
     if (pcm_dirty_) Reconcile();  // once per tick: a burst of verified loops, one clique search
-    bool done = pending_.empty() && deferred_.empty();
+    bool done = pending_.empty() && deferred_.empty() && registrations_.empty();
     for (int r : Wiring().robots) done = done && (r > RobotId() || StreamEnded(r));
     // A subscriber that (re)joined after we sent (a restarted robot's solver) gets every loop
     // accepted now again; solvers ignore verdicts they already hold.

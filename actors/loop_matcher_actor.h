@@ -3,16 +3,20 @@
 // descriptors arrives: the loop set does not depend on arrival order); the lower robot's cloud
 // is requested only for candidates the cloud-request gate admits (one open request per place and
 // robot pair, a cloud fetched once) and travels downsampled at the registration voxel; GICP seeded
-// by the Scan Context yaw verifies; verified loops pass pairwise consistency maximisation
-// (re-evaluated on each new loop: a loop that drops out of the consistent set is withdrawn) and go
-// to both robots' solvers.
+// by the Scan Context yaw verifies (on a pool of worker threads, each verdict applied in the order
+// the candidates came, so the loop set is the one-thread one); verified loops pass pairwise
+// consistency maximisation (re-evaluated on each new loop: a loop that drops out of the consistent
+// set is withdrawn) and go to both robots' solvers.
 #pragma once
 
 #include <atomic>
+#include <boost/asio/thread_pool.hpp>
 #include <chrono>
 #include <deque>
+#include <future>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <utility>
@@ -53,6 +57,10 @@ struct LoopMatcherConfig {
     /// Keyframes whose clouds stay prepared for registration (downsampled, trees, GICP
     /// covariances), >= 0, the latest used kept: a keyframe is often in several candidates.
     int prepared_clouds = 16;
+    /// Worker threads running the registrations, >= 1. Verdicts are applied in candidate order
+    /// whatever the threads' timing; with place_window > 0 the gate waits for every verdict
+    /// before admitting the next inter-robot candidate, as it needs them.
+    int registration_threads = 2;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -62,7 +70,7 @@ struct LoopMatcherConfig {
 class LoopMatcherActor final : public NodeActor {
   public:
     LoopMatcherActor(zmq::context_t& context, TeamWiring wiring, LoopMatcherConfig config);
-    ~LoopMatcherActor() override { Stop(); }
+    ~LoopMatcherActor() override;
 
     /// Loops accepted now (sent and not withdrawn).
     int LoopsFound() const { return loops_.load(); }
@@ -83,22 +91,44 @@ class LoopMatcherActor final : public NodeActor {
 
   protected:
     void OnStart() override;
-    void OnStop() override { CloseEndpoints(); }
+    void OnStop() override;
 
   private:
     struct Pending {
         slam::LoopCandidate candidate;  ///< query: own keyframe; match: the cloud's keyframe
         std::chrono::steady_clock::time_point sent;
     };
+    /// A cloud prepared for registration by the first worker that needs it (others wait).
+    class LazyPrepared {
+      public:
+        LazyPrepared(slam::PointCloudPtr cloud, const slam::RegistrationConfig& config)
+            : cloud_(std::move(cloud)), config_(config) {}
+        const slam::PreparedCloud& Get();
+
+      private:
+        std::once_flag once_;
+        slam::PointCloudPtr cloud_;  ///< released once prepared
+        slam::RegistrationConfig config_;
+        std::unique_ptr<const slam::PreparedCloud> prepared_;
+    };
+    struct Registration {  ///< a candidate on the workers
+        slam::LoopCandidate candidate;
+        std::future<slam::RegistrationResult> result;
+    };
 
     bool OnDescriptor(const transport::Message& m);
     bool OnCloudRequest(const transport::Message& m);
     bool OnCloudReply(const transport::Message& m);
     void Consider(const slam::LoopCandidate& candidate);
-    void Verify(const slam::LoopCandidate& candidate, const slam::PointCloud& match_cloud);
-    /// `cloud` of keyframe `id` prepared for registration, kept among the latest used.
-    std::shared_ptr<const slam::PreparedCloud> Prepared(const slam::PoseId& id,
-                                                        const slam::PointCloud& cloud);
+    /// Queues the candidate's registration on the workers.
+    void Verify(const slam::LoopCandidate& candidate, const slam::PointCloudPtr& match_cloud);
+    /// Applies finished registrations in queue order up to the first unfinished one, then waits
+    /// for the head until at most `at_most` are left queued.
+    void ApplyRegistrations(std::size_t at_most);
+    void Apply(const slam::LoopCandidate& candidate, const slam::RegistrationResult& result);
+    /// `cloud` of keyframe `id` to be prepared for registration, kept among the latest used.
+    std::shared_ptr<LazyPrepared> Prepared(const slam::PoseId& id,
+                                           const slam::PointCloudPtr& cloud);
     void RequestCloud(std::uint64_t id, const Pending& p);
     slam::PointCloudPtr ReplyCloud(int index);
     void OnOwnKeyframe(const slam::Keyframe& keyframe);
@@ -117,9 +147,11 @@ class LoopMatcherActor final : public NodeActor {
     std::map<int, slam::PointCloudPtr> reply_clouds_;          ///< own keyframe -> as sent
     std::map<slam::PoseId, slam::PointCloudPtr> peer_clouds_;  ///< fetched, kept (gate: once)
     std::map<slam::PoseId, std::vector<slam::LoopCandidate>> waiting_;  ///< on a fetch
-    std::map<slam::PoseId, std::shared_ptr<const slam::PreparedCloud>> prepared_;
+    std::map<slam::PoseId, std::shared_ptr<LazyPrepared>> prepared_;
     std::deque<slam::PoseId> prepared_order_;  ///< prepared_'s keys, least recently used first
     slam::CloudRequestGate gate_;
+    std::unique_ptr<boost::asio::thread_pool> workers_;      ///< registration_threads threads
+    std::deque<Registration> registrations_;                 ///< queued, in candidate order
     std::map<slam::PoseId, slam::ScanContext> descriptors_;  ///< own and lower robots'
     std::map<std::uint64_t, Pending> pending_;  ///< request id -> candidate that fetched
     std::vector<Pending> deferred_;          ///< own clouds not yet arrived (descriptor came first)

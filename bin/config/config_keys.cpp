@@ -258,6 +258,11 @@ std::vector<ConfigKey> MatcherKeys() {
             "matcher.max_candidates_per_query",
             [](TeamConfig & c, int) -> auto& { return c.node.matcher.max_candidates_per_query; },
             {0.0, 1e6}, "best Scan Context candidates registered per keyframe and robot (0: all)"),
+        Num<int>(
+            "matcher.registration_threads",
+            [](TeamConfig & c, int) -> auto& { return c.node.matcher.registration_threads; },
+            {1.0, 64.0},
+            "threads registering loop candidates (verdicts applied in candidate order)"),
         Flag(
             "matcher.downsample_replies",
             [](TeamConfig & c, int) -> auto& { return c.node.matcher.downsample_replies; },

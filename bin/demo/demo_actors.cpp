@@ -36,6 +36,8 @@ actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate)
     // whole stretch of the other robot's, and each candidate costs a GICP.
     config.matcher.max_candidates_per_query = 2;
     config.matcher.registration.voxel_m = 0.4;
+    // The mesh waits two publish periods for the last re-anchorings: 100 ms, not the default 500.
+    config.mapper.publish_period = std::chrono::milliseconds(100);
     config.matcher.registration.max_correspondence_m = 2.5 * 0.4;
     config.matcher.registration.inlier_distance_m =
         std::max(config.matcher.registration.inlier_distance_m, 0.4);

@@ -6,6 +6,7 @@
 // descriptors (a late subscriber) does not end the matcher.
 #include <gtest/gtest.h>
 
+#include <map>
 #include <thread>
 
 #include "actors/convert.h"
@@ -33,7 +34,36 @@ struct FrontEndRun {
     int skipped = 0;                       ///< robot 1's candidates the gate skipped
     int capped = 0;                        ///< robot 1's candidates the per-query cap left out
     int registered = 0;                    ///< robot 1's registrations (verified + rejected)
+    int verified = 0;                      ///< robot 1's verified registrations
+    /// The loops accepted at the end: every loop sent, less those withdrawn after.
+    std::map<std::pair<slam::PoseId, slam::PoseId>, slam::LoopClosure> accepted;
 };
+
+/// Reads both robots' loop streams until each matcher said end of loops (or kTimeout): every
+/// loop into run->loops, the accepted ones (withdrawals applied) into run->accepted.
+std::set<int> Listen(const std::vector<std::unique_ptr<transport::Endpoint>>& listeners,
+                     FrontEndRun* run) {
+    std::set<int> ended;
+    const auto deadline = std::chrono::steady_clock::now() + kTimeout;
+    while (ended.size() < listeners.size() && std::chrono::steady_clock::now() < deadline) {
+        for (const auto& l : listeners) {
+            while (auto m = l->Receive(std::chrono::milliseconds(10))) {
+                if (auto loop = transport::Unpack<v1::LoopClosure>(*m)) {
+                    // A withdrawal (PCM changed its mind) is not a loop: FromProto refuses it.
+                    if (auto closure = FromProto(*loop)) {
+                        run->loops.push_back(*closure);
+                        run->accepted[{closure->a, closure->b}] = *closure;
+                    } else if (auto ends = WithdrawnEnds(*loop)) {
+                        run->accepted.erase(*ends);
+                    }
+                } else if (auto end = transport::Unpack<v1::Shutdown>(*m)) {
+                    if (end->reason() == kEndOfLoops) ended.insert(end->header().robot_id());
+                }
+            }
+        }
+    }
+    return ended;
+}
 
 /// Runs ingest, descriptor and matcher actors of robots 0 and 1 on the simulated mission and
 /// checks what every run must show (true loops, end markers, candidate clouds only).
@@ -71,25 +101,11 @@ FrontEndRun RunFrontEnd(const LoopMatcherConfig& matcher_config) {
     }
     for (auto& a : actors) a->Start();
 
-    std::vector<slam::LoopClosure> loops;
-    std::set<int> ended;
-    const auto deadline = std::chrono::steady_clock::now() + kTimeout;
-    while (ended.size() < 2 && std::chrono::steady_clock::now() < deadline) {
-        for (auto& l : listeners) {
-            while (auto m = l->Receive(std::chrono::milliseconds(10))) {
-                if (auto loop = transport::Unpack<v1::LoopClosure>(*m)) {
-                    // A withdrawal (PCM changed its mind) is not a loop: FromProto refuses it.
-                    if (auto closure = FromProto(*loop)) loops.push_back(*closure);
-                } else if (auto end = transport::Unpack<v1::Shutdown>(*m)) {
-                    if (end->reason() == kEndOfLoops) ended.insert(end->header().robot_id());
-                }
-            }
-        }
-    }
     FrontEndRun run;
+    const std::set<int> ended = Listen(listeners, &run);
     EXPECT_EQ(ended.size(), 2u) << "a matcher never said end of loops";
     int inter = 0;
-    for (const auto& loop : loops) {
+    for (const auto& loop : run.loops) {
         const Eigen::Isometry3d T_true =
             generator.T_world_sensor_truth(loop.a.robot, loop.a.index).inverse() *
             generator.T_world_sensor_truth(loop.b.robot, loop.b.index);
@@ -109,12 +125,12 @@ FrontEndRun RunFrontEnd(const LoopMatcherConfig& matcher_config) {
     for (auto* ingest : ingests) EXPECT_EQ(ingest->Published(), kKeyframes);
     for (auto& a : actors) EXPECT_EQ(a->Counters().dropped_malformed, 0u) << a->Name();
     for (auto& a : actors) a->Stop();
-    run.loops = loops;
     run.inter = inter;
     run.clouds_requested = matchers[1]->CloudsRequested();
     run.skipped = matchers[1]->Skipped();
     run.capped = matchers[1]->Capped();
     run.registered = matchers[1]->Verified() + matchers[1]->Rejected();
+    run.verified = matchers[1]->Verified();
     return run;
 }
 
@@ -138,6 +154,29 @@ TEST(FrontEndActors, CandidateCapRegistersTheBestCandidatePerKeyframeAndRobot) {
     EXPECT_LE(run.registered, 2 * kKeyframes);
     EXPECT_LT(run.registered, all.registered);
     EXPECT_GE(run.inter, 1);
+}
+
+// Registrations on four worker threads finish in any order, but their verdicts are applied in
+// candidate order: the same registrations, the same verified loops, the same accepted loops with
+// the same transforms as on one thread.
+TEST(FrontEndActors, RegistrationThreadsGiveTheOneThreadLoops) {
+    LoopMatcherConfig config;  // no candidate cap: the candidates do not depend on arrival order
+    config.registration_threads = 1;
+    const FrontEndRun one = RunFrontEnd(config);
+    config.registration_threads = 4;
+    const FrontEndRun four = RunFrontEnd(config);
+    EXPECT_GT(one.registered, 0);
+    EXPECT_EQ(four.registered, one.registered);
+    EXPECT_EQ(four.verified, one.verified);
+    ASSERT_GE(one.accepted.size(), 1u);
+    ASSERT_EQ(four.accepted.size(), one.accepted.size());
+    for (const auto& [ends, loop] : one.accepted) {
+        const auto it = four.accepted.find(ends);
+        ASSERT_NE(it, four.accepted.end());
+        EXPECT_TRUE(it->second.T_a_b.isApprox(loop.T_a_b, 1e-12));
+        EXPECT_EQ(it->second.kappa, loop.kappa);
+        EXPECT_EQ(it->second.tau, loop.tau);
+    }
 }
 
 // One place (a window wider than the mission): after a cloud registered, later candidates of

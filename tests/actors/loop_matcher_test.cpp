@@ -1,6 +1,10 @@
 // The loop matcher's withdrawal message (incremental PCM itself is tested in
 // tests/slam/frontend/incremental_pcm_test.cpp): it round-trips and is never taken for a loop.
+// The matcher's settings refuse a value that breaks their rule, naming the field.
 #include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <string>
 
 #include "actors/convert.h"
 #include "actors/loop_matcher_actor.h"
@@ -19,6 +23,20 @@ TEST(LoopWithdrawal, RoundTripsAndIsNotALoop) {
     loop.a = {0, 3};
     loop.b = {1, 9};
     EXPECT_FALSE(WithdrawnEnds(ToProto(loop)).has_value());
+}
+
+TEST(LoopMatcherConfig, RejectsNoRegistrationThreadsNamingTheField) {
+    LoopMatcherConfig config;
+    EXPECT_NO_THROW(config.Validate());
+    config.registration_threads = 0;
+    try {
+        config.Validate();
+        ADD_FAILURE() << "0 registration threads accepted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("LoopMatcherConfig.registration_threads = 0"),
+                  std::string::npos)
+            << e.what();
+    }
 }
 
 }  // namespace

@@ -222,16 +222,16 @@ void SolverActor::Tick() {
     if (bundle_out_->subscribers() != bundle_readers_) {
         const bool more = bundle_out_->subscribers() > bundle_readers_;
         bundle_readers_ = bundle_out_->subscribers();
-        if (more && local_ok_) SendBundle();
+        bundle_owed_ = bundle_owed_ || more;
     }
+    if (bundle_owed_ && local_ok_) SendBundle();
     if (InRounds()) {
         SyncTick();
         return;
     }
-    // Public poses at most every publish_period (with a 2 ms tick, sending every step's poses is
-    // a large share of a team's bytes); the newest go out late.
-    if (publish_pending_ &&
-        std::chrono::steady_clock::now() - last_publish_ >= config_.publish_period) {
+    // Public poses at most every publish_period while the graph grows (with a 2 ms tick, sending
+    // every step's poses is a large share of a team's bytes); the newest go out late.
+    if (publish_pending_ && PublishDue()) {
         Publish();
         UpdateSnapshot();
     }
@@ -251,10 +251,7 @@ void SolverActor::Tick() {
     // tolerance: otherwise the team's last refinements travel only with the heartbeat.
     if (!local_ok_ || step.moved) bundle_dirty_ = true;
     if (!local_ok_ || step.rebuilt || step.moved) publish_pending_ = true;
-    if (publish_pending_ &&
-        std::chrono::steady_clock::now() - last_publish_ >= config_.publish_period) {
-        Publish();
-    }
+    if (publish_pending_ && PublishDue()) Publish();
     const auto now = std::chrono::steady_clock::now();
     if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
     UpdateSnapshot();
@@ -270,6 +267,12 @@ void SolverActor::EndRefinementWhenSpent(const certify::SolverStepResult& step) 
     }
     tolerance_scale_ = 1.0;
     work_ = true;
+}
+
+bool SolverActor::PublishDue() const {
+    // Once the graph is final every step's poses go out: the team converges on them, and a
+    // robot stepping against late poses declares convergence where the team has not.
+    return IsFinal() || std::chrono::steady_clock::now() - last_publish_ >= config_.publish_period;
 }
 
 void SolverActor::Publish() {
@@ -357,6 +360,7 @@ void SolverActor::SendBundle() {
     *trajectory.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     Send(*bundle_out_, transport::Pack(trajectory), false);
     bundle_dirty_ = false;
+    bundle_owed_ = false;
     last_bundle_ = std::chrono::steady_clock::now();
 }
 

@@ -31,11 +31,12 @@ struct SolverActorConfig {
     std::chrono::milliseconds tick{2};             ///< a block update at most this often, > 0
     std::chrono::milliseconds heartbeat{200};      ///< poses, status, loops re-sent this often
     std::chrono::milliseconds bundle_period{300};  ///< converged block to the certifier, > 0
-    /// Public poses after a step at most this often (a later step's poses wait for the next
-    /// tick past it; nothing is lost, the newest poses go out), >= 0; 0: after every step.
-    /// Off by default: with a period, test_actors_solver_actor's silent-neighbour case ends with
-    /// both robots locally converged away from the optimum (cause not found yet).
-    std::chrono::milliseconds publish_period{0};
+    /// Public poses after a step at most this often while the graph grows (a later step's poses
+    /// wait for the next tick past it; nothing is lost, the newest poses go out), >= 0; 0: after
+    /// every step. Once the graph is final every step's poses go out at once. While the graph grows
+    /// every step moves the block: without a period the poses of every step would cross (most of a
+    /// team's solver bytes).
+    std::chrono::milliseconds publish_period{50};
     std::string log_path;      ///< durable log of accepted loop closures (replayed); empty: none
     std::string log_identity;  ///< the mission identity written in a new log's header
     /// Inter-robot loops re-sent with every heartbeat (late or restarted peers learn the ones
@@ -132,6 +133,7 @@ class SolverActor final : public NodeActor {
     void Heartbeat();
     void SendBundle();
     void Publish();
+    bool PublishDue() const;  ///< publish_period passed, or the graph is final
     void UpdateSnapshot();
     /// What a snapshot shows that a tick can change (the rest changes with the graph, `changed_`).
     using SnapshotKey = std::tuple<std::uint64_t, std::uint64_t, std::uint64_t, bool, bool, bool,
@@ -164,6 +166,9 @@ class SolverActor final : public NodeActor {
     double grad_norm_ = 0.0;
     std::chrono::steady_clock::time_point last_bundle_{};
     std::size_t bundle_readers_ = 0;  ///< subscribers of the bundle stream at the last tick
+    /// A new bundle reader came while the block was not locally converged: its bundle goes out
+    /// as soon as it is (not a bundle_period later).
+    bool bundle_owed_ = false;
     std::chrono::steady_clock::time_point last_publish_{};
     bool publish_pending_ = false;  ///< a step moved the block since the last publish
     /// Multiplies the asynchronous steps' tolerance: rounds.refine_rel_grad_tol / rel_grad_tol

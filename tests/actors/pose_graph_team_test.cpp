@@ -12,6 +12,7 @@
 
 #include "certify/pose_graph_solver.h"
 #include "slam/io/g2o_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::actors {
 namespace {
@@ -20,7 +21,7 @@ constexpr double kRelCost = 1e-6;  ///< distributed vs in-process optimum of the
 constexpr std::chrono::seconds kTimeout{90};  ///< a team that has not certified by then failed
 
 slam::PoseGraph Read(const std::string& name) {
-    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + name);
+    const auto read = slam::ReadG2o(test_data::G2oPath(name));
     EXPECT_TRUE(read.ok()) << read.error;
     return read.graph;
 }

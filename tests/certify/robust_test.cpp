@@ -12,6 +12,7 @@
 #include "slam/backend/chordal.h"
 #include "slam/core/partition.h"
 #include "slam/io/multirobot_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
@@ -22,8 +23,7 @@ constexpr double kGncInnerTolerance = 1e-4;  ///< rel_grad_tol of the GNC rounds
 constexpr double kFitFraction = 0.95;        ///< kept edges within c^2, rejected ones above
 
 PoseGraph Tunnels() {
-    const PoseGraphReadResult read =
-        ReadMultiRobotCsv(std::string(CERTISLAM_DATA_DIR) + "/g2o/multirobot/tunnels");
+    const PoseGraphReadResult read = ReadMultiRobotCsv(test_data::G2oPath("multirobot/tunnels"));
     EXPECT_TRUE(read.ok()) << read.error;
     return read.graph;
 }

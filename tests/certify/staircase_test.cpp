@@ -12,6 +12,7 @@
 #include "slam/core/graph_split.h"
 #include "slam/io/g2o_io.h"
 #include "tests/certify/test_graphs.h"
+#include "tests/data_paths.h"
 
 namespace certislam::certify {
 namespace {
@@ -78,7 +79,7 @@ class RealData : public ::testing::TestWithParam<RealFile> {};
 
 TEST_P(RealData, CertifiedAtPublishedOptimum) {
     const RealFile file = GetParam();
-    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + file.name);
+    const auto read = slam::ReadG2o(test_data::G2oPath(file.name));
     ASSERT_TRUE(read.ok()) << read.error;
     const slam::PoseGraph& graph = read.graph;
     const Eigen::MatrixXd X0 = slam::LiftToRank(slam::ChordalInitialization(graph), graph.d + 2);
@@ -98,7 +99,7 @@ TEST_P(RealData, CertifiedAtPublishedOptimum) {
 /// merged graph certifies, and its optimum plus the merge's constant is the file's f*.
 TEST(MergedParallelEdges, CubicleCertifiedAtThePublishedOptimumPlusTheConstant) {
     constexpr double kCubicleFStar = 717.134043271;  // data/g2o/README.md, f*(here)
-    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/cubicle.g2o");
+    const auto read = slam::ReadG2o(test_data::G2oPath("cubicle.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     const slam::MergedGraph merged = slam::MergeParallelEdges(read.graph);
     EXPECT_GT(merged.merged, 4000);

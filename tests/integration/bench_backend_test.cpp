@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "tests/data_paths.h"
 #include "tests/integration/shell.h"
 
 namespace certislam {
@@ -13,7 +14,7 @@ namespace {
 
 using testing::Shell;
 
-std::string Intel() { return std::string(CERTISLAM_DATA_DIR) + "/g2o/intel.g2o"; }
+std::string Intel() { return test_data::G2oPath("intel.g2o"); }
 
 TEST(BenchBackend, JsonTimesEveryKernelVariantOnARealFile) {
     const auto result = Shell(std::string(CERTISLAM_BINARY) + " bench backend " + Intel() +

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string>
 
+#include "tests/data_paths.h"
 #include "tests/integration/shell.h"
 #include "tests/scratch_dir.h"
 
@@ -26,7 +27,7 @@ ShellResult Certislam(const std::string& args) {
 }
 
 std::string TinyGridText() {
-    std::ifstream in(std::string(CERTISLAM_DATA_DIR) + "/g2o/tinyGrid3D.g2o");
+    std::ifstream in(certislam::test_data::G2oPath("tinyGrid3D.g2o"));
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 

@@ -16,11 +16,12 @@
 #include "certify/pipeline/mission.h"
 #include "slam/core/keyframe.h"
 #include "slam/io/keyframe_sources_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::certify {
 namespace {
 
-const std::string kKaist = std::string(CERTISLAM_DATA_DIR) + "/lidar/mulran_kaist03_keyframes";
+const std::string kKaist = test_data::DataPath("lidar/mulran_kaist03_keyframes");
 constexpr double kOffsetToleranceM = 0.2;    ///< recovered offset translation error
 constexpr double kOffsetToleranceDeg = 1.0;  ///< recovered offset rotation error
 constexpr double kOffsetYawDeg = 40.0;       ///< the unknown offset's yaw

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "tests/data_paths.h"
 #include "tests/integration/shell.h"
 #include "tests/scratch_dir.h"
 
@@ -21,9 +22,7 @@ using certislam::testing::WriteScratch;
 /// Distributed vs in-process cost (as in solve_distributed_test.cpp).
 constexpr double kRelCost = 1e-6;
 
-std::string Data(const std::string& name) {
-    return std::string(CERTISLAM_DATA_DIR) + "/g2o/" + name;
-}
+std::string Data(const std::string& name) { return certislam::test_data::G2oPath(name); }
 
 nlohmann::json Json(const std::string& args) {
     const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " " + args + " --json 2>&1");

@@ -10,6 +10,7 @@
 #include <numbers>
 #include <string>
 
+#include "tests/data_paths.h"
 #include "tests/integration/shell.h"
 #include "tests/scratch_dir.h"
 
@@ -17,7 +18,7 @@ namespace {
 
 using certislam::testing::Shell;
 
-const std::string kLidar = std::string(CERTISLAM_DATA_DIR) + "/lidar/";
+const std::string kLidar = certislam::test_data::DataPath("lidar/");
 constexpr double kHdlMaxTranslationM = 0.05;  // issue 4: fast_gicp's pair, 0.2 m voxels
 constexpr double kHdlMaxRotationDeg = 1.0;
 

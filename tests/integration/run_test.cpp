@@ -16,12 +16,13 @@
 
 #include "slam/io/keyframe_sources_io.h"
 #include "slam/io/rosbag/rosbag_source_io.h"
+#include "tests/data_paths.h"
 #include "tests/integration/shell.h"
 
 namespace certislam {
 namespace {
 
-const std::string kKaist = std::string(CERTISLAM_DATA_DIR) + "/lidar/mulran_kaist03_keyframes";
+const std::string kKaist = test_data::DataPath("lidar/mulran_kaist03_keyframes");
 constexpr double kOffsetToleranceM = 0.2;    ///< recovered offset translation error
 constexpr double kOffsetToleranceDeg = 1.0;  ///< recovered offset rotation error
 constexpr int kKeyframesRobot0 = 11;         ///< the folder has 21 keyframes: 11 even
@@ -255,8 +256,7 @@ TEST_F(Run, RosbagPerRobotIsRead) {
 TEST_F(Run, KittiSequencePerRobotIsRead) {
     // Both robots drive the same four KITTI 00 frames (velodyne + ground truth + calibration):
     // every frame is a keyframe (selection off), and the ground truth is the reference.
-    const std::string kitti =
-        std::string(CERTISLAM_DATA_DIR) + "/lidar/kitti00_scancontext_samples";
+    const std::string kitti = test_data::DataPath("lidar/kitti00_scancontext_samples");
     const std::string sequence = R"({"folder": ")" + kitti + R"(", "poses": ")" + kitti +
                                  R"(/poses_cam0_subset.txt", "calib": ")" + kitti +
                                  R"(/calib_Tr_velo_to_cam0_seq00.txt"})";

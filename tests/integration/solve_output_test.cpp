@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/data_paths.h"
 #include "tests/integration/shell.h"
 #include "tests/scratch_dir.h"
 
@@ -48,7 +49,7 @@ int Lines(const std::string& path) {
 /// tinyGrid3D moved so that its pose 0 is not the identity (the solver's gauge would lose it).
 std::string MovedTinyGrid() {
     const std::string path = TempPath("moved.g2o");
-    std::ifstream in(std::string(CERTISLAM_DATA_DIR) + "/g2o/tinyGrid3D.g2o");
+    std::ifstream in(test_data::G2oPath("tinyGrid3D.g2o"));
     std::ofstream out(path);
     out.precision(17);
     for (std::string line; std::getline(in, line);) {

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "tests/data_paths.h"
 #include "tests/integration/shell.h"
 #include "tests/scratch_dir.h"
 
@@ -24,7 +25,7 @@ std::string TempPath(const std::string& name) {
     return (dir / name).string();
 }
 
-std::string TinyGrid() { return std::string(CERTISLAM_DATA_DIR) + "/g2o/tinyGrid3D.g2o"; }
+std::string TinyGrid() { return certislam::test_data::G2oPath("tinyGrid3D.g2o"); }
 
 nlohmann::json SolveJson(const std::string& args) {
     const ShellResult r =

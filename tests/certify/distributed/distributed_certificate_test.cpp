@@ -14,6 +14,7 @@
 #include "slam/backend/connection_laplacian.h"
 #include "slam/io/g2o_io.h"
 #include "tests/certify/test_graphs.h"
+#include "tests/data_paths.h"
 
 namespace certislam::certify {
 namespace {
@@ -31,7 +32,7 @@ std::vector<CertificateRows> AllRows(const Eigen::SparseMatrix<double>& Q, const
 }
 
 TEST(DistributedCertificate, RowsReassembleTheCentralisedS) {
-    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/tinyGrid3D.g2o");
+    const auto read = slam::ReadG2o(test_data::G2oPath("tinyGrid3D.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     const int d = 3;
     const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(read.graph);
@@ -53,7 +54,7 @@ TEST(DistributedCertificate, RowsReassembleTheCentralisedS) {
 }
 
 TEST(DistributedCertificate, MatchesCentralisedLambdaMinAtCertifiedOptimum) {
-    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/smallGrid3D.g2o");
+    const auto read = slam::ReadG2o(test_data::G2oPath("smallGrid3D.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     const slam::PoseGraph& graph = read.graph;
     const int d = graph.d;

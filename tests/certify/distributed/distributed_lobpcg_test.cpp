@@ -22,6 +22,7 @@
 #include "slam/backend/connection_laplacian.h"
 #include "slam/io/g2o_io.h"
 #include "tests/certify/test_graphs.h"
+#include "tests/data_paths.h"
 
 namespace certislam::certify {
 namespace {
@@ -59,7 +60,7 @@ void ExpectAgrees(const Problem& p, const LobpcgResult& r, const std::string& wh
 }
 
 slam::PoseGraph Read(const std::string& name) {
-    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + name);
+    const auto read = slam::ReadG2o(test_data::G2oPath(name));
     EXPECT_TRUE(read.ok()) << read.error;
     return read.graph;
 }

@@ -17,6 +17,7 @@
 #include "slam/core/graph_split.h"
 #include "slam/io/g2o_io.h"
 #include "tests/certify/test_graphs.h"
+#include "tests/data_paths.h"
 
 namespace certislam::certify {
 namespace {
@@ -112,7 +113,7 @@ TEST(RoundCertificate, NonCriticalPointGetsNoEigenvalueAndNoBound) {
 }
 
 TEST_P(RoundCertificate, TinyGrid3DRbcdOptimumAtRankFiveIsCertified) {
-    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/tinyGrid3D.g2o");
+    const auto read = slam::ReadG2o(test_data::G2oPath("tinyGrid3D.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     const slam::Partition partition = slam::ContiguousPartition(read.graph.n, Robots());
     const slam::PoseGraph graph = WithRobotIds(read.graph, partition);
@@ -133,7 +134,7 @@ TEST(RoundCertificate, Sphere2500AtTheRobotsRefinedIterateIsCertifiedByLobpcgWit
     constexpr int kRobots = 5;
     constexpr double kMaxRelativeBound = 1e-6;  // CertificateConfig's default
     constexpr int kMaxExchanges = 300;          // in memory at the rounded optimum: 225
-    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/sphere2500.g2o");
+    const auto read = slam::ReadG2o(test_data::G2oPath("sphere2500.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     const slam::Partition partition = slam::ContiguousPartition(read.graph.n, kRobots);
     const slam::PoseGraph graph = WithRobotIds(read.graph, partition);

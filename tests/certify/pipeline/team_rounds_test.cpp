@@ -12,6 +12,7 @@
 
 #include "slam/core/graph_split.h"
 #include "slam/io/g2o_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::certify {
 namespace {
@@ -35,7 +36,7 @@ double GradientNorm(InMemoryTeam* team) {
 }
 
 std::vector<slam::RobotGraph> SmallGrid(int robots) {
-    const auto read = slam::ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/smallGrid3D.g2o");
+    const auto read = slam::ReadG2o(test_data::G2oPath("smallGrid3D.g2o"));
     EXPECT_EQ(read.status, slam::PoseGraphReadResult::Status::kOk) << read.error;
     return slam::SplitGraph(read.graph, slam::ContiguousPartition(read.graph.n, robots));
 }

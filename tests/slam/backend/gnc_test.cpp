@@ -9,13 +9,13 @@
 
 #include "slam/backend/chordal.h"
 #include "slam/io/g2o_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
 
 PoseGraph GridWithOutlier(RelativePoseMeasurement* outlier) {
-    const PoseGraphReadResult read =
-        ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/tinyGrid3D.g2o");
+    const PoseGraphReadResult read = ReadG2o(test_data::G2oPath("tinyGrid3D.g2o"));
     EXPECT_TRUE(read.ok()) << read.error;
     PoseGraph graph = read.graph;
     // A 500 m loop closure between the first and the last pose, weighted like the file's edges.

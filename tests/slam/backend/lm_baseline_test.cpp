@@ -7,6 +7,7 @@
 #include "slam/backend/connection_laplacian.h"
 #include "slam/io/g2o_io.h"
 #include "tests/certify/test_graphs.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
@@ -45,7 +46,7 @@ struct RealFile {
 class LmRealData : public ::testing::TestWithParam<RealFile> {};
 
 TEST_P(LmRealData, FromOdometryReachesPublishedOptimum) {
-    const auto read = ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + GetParam().name);
+    const auto read = ReadG2o(test_data::G2oPath(GetParam().name));
     ASSERT_TRUE(read.ok()) << read.error;
     const LmResult result = SolveLm(read.graph, OdometryInitialization(read.graph));
     EXPECT_EQ(result.status, LmResult::Status::kConverged) << result.message;

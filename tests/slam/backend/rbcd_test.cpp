@@ -13,6 +13,7 @@
 #include "slam/backend/rounding.h"
 #include "slam/core/partition.h"
 #include "slam/io/g2o_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
@@ -39,7 +40,7 @@ class RbcdReachesOptimum : public testing::TestWithParam<Case> {};
 
 TEST_P(RbcdReachesOptimum, RoundedCostWithinRelativeGap) {
     const Case c = GetParam();
-    const PoseGraphReadResult read = ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + c.file);
+    const PoseGraphReadResult read = ReadG2o(test_data::G2oPath(c.file));
     ASSERT_TRUE(read.ok()) << read.error;
     const PoseGraph& graph = read.graph;
     const int rank = graph.d + 2;

@@ -18,6 +18,7 @@
 #include "slam/backend/connection_laplacian.h"
 #include "slam/core/partition.h"
 #include "slam/io/g2o_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
@@ -26,9 +27,7 @@ constexpr double kRegulariser = 1e-8;  // as RbcdConfig::precon_regulariser
 constexpr double kSolveTol = 1e-9;     // relative, factorisations of the same matrix
 constexpr int kNeverEscalate = 1 << 30;
 
-PoseGraphReadResult Read(const std::string& file) {
-    return ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + file);
-}
+PoseGraphReadResult Read(const std::string& file) { return ReadG2o(test_data::G2oPath(file)); }
 
 // Poses within `overlap` edges of robot k's own poses, from the edge list (independent of the
 // preconditioner's adjacency built from Q).

@@ -10,6 +10,7 @@
 
 #include "slam/backend/connection_laplacian.h"
 #include "slam/io/g2o_io.h"
+#include "tests/data_paths.h"
 #include "tests/slam/backend/random_dense.h"
 
 namespace certislam::slam {
@@ -72,8 +73,7 @@ TEST(SparseProduct, EmptyColumnsGiveZeroColumns) {
 }
 
 TEST(SparseProduct, MatchesEigenOnParkingGarageConnectionLaplacian) {
-    const PoseGraphReadResult read =
-        ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/parking-garage.g2o");
+    const PoseGraphReadResult read = ReadG2o(test_data::G2oPath("parking-garage.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     const Eigen::SparseMatrix<double> Q = ConnectionLaplacian(read.graph);
     for (int r : {3, 4}) {

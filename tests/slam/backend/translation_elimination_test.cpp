@@ -14,6 +14,7 @@
 #include "slam/backend/stiefel.h"
 #include "slam/core/partition.h"
 #include "slam/io/g2o_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
@@ -22,7 +23,7 @@ constexpr double kZeroRel = 1e-9;      ///< |translation columns| / |whole|, rou
 constexpr double kSameCostRel = 1e-7;  ///< elimination on/off: same optimum, relative
 
 PoseGraph Read(const std::string& file) {
-    const PoseGraphReadResult read = ReadG2o(std::string(CERTISLAM_DATA_DIR) + "/g2o/" + file);
+    const PoseGraphReadResult read = ReadG2o(test_data::G2oPath(file));
     EXPECT_TRUE(read.ok()) << read.error;
     return read.graph;
 }

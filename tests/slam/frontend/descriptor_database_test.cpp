@@ -10,11 +10,12 @@
 #include <string>
 
 #include "slam/io/cloud_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
 
-const std::string kLidar = std::string(CERTISLAM_DATA_DIR) + "/lidar/";
+const std::string kLidar = test_data::DataPath("lidar/");
 
 ScanContext KaistDescriptor(int index) {
     char name[64];

@@ -16,11 +16,12 @@
 #include "slam/frontend/downsample.h"
 #include "slam/frontend/scan_context.h"
 #include "slam/io/cloud_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
 
-const std::string kLidar = std::string(CERTISLAM_DATA_DIR) + "/lidar/";
+const std::string kLidar = test_data::DataPath("lidar/");
 constexpr double kHdlMaxTranslationM = 0.05;  // fast_gicp's own test thresholds (issue 4)
 constexpr double kHdlMaxRotationDeg = 1.0;
 constexpr double kKittiMaxTranslationM = 0.10;

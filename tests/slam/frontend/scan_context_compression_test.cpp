@@ -9,11 +9,12 @@
 #include <string>
 
 #include "slam/io/cloud_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
 
-const std::string kLidar = std::string(CERTISLAM_DATA_DIR) + "/lidar/";
+const std::string kLidar = test_data::DataPath("lidar/");
 constexpr double kSamePlaceMax = 0.15;       // issue 4: same place below 0.15
 constexpr double kDifferentPlaceMin = 0.4;   // issue 4: different places above 0.4
 constexpr double kDistanceChangeMax = 0.01;  // quantisation moves a distance by less than this

@@ -14,11 +14,12 @@
 #include "slam/frontend/downsample.h"
 #include "slam/frontend/registration.h"
 #include "slam/io/cloud_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
 
-const std::string kLidar = std::string(CERTISLAM_DATA_DIR) + "/lidar/";
+const std::string kLidar = test_data::DataPath("lidar/");
 constexpr double kFloatSlackM = 1e-5;  // float32 rounding of coordinates up to ~100 m
 constexpr double kHdlMaxTranslationM = 0.05;
 constexpr double kHdlMaxRotationDeg = 1.0;

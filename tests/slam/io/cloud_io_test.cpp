@@ -8,6 +8,7 @@
 #include <fstream>
 #include <string>
 #include <vector>
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
@@ -15,7 +16,7 @@ namespace {
 namespace fs = std::filesystem;
 using Status = CloudReadResult::Status;
 
-const std::string kLidar = std::string(CERTISLAM_DATA_DIR) + "/lidar/";
+const std::string kLidar = test_data::DataPath("lidar/");
 
 fs::path TempDir() {
     const fs::path dir =

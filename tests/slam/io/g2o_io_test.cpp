@@ -10,6 +10,7 @@
 #include <string>
 
 #include "slam/backend/connection_laplacian.h"
+#include "tests/data_paths.h"
 #include "tests/scratch_dir.h"
 
 namespace certislam::slam {
@@ -17,9 +18,7 @@ namespace {
 
 constexpr double kWeightTolerance = 1e-9;  ///< relative, kappa/tau after a write/read round trip
 
-std::string DataFile(const std::string& name) {
-    return std::string(CERTISLAM_DATA_DIR) + "/g2o/" + name;
-}
+std::string DataFile(const std::string& name) { return test_data::G2oPath(name); }
 
 std::string WriteTemp(const std::string& name, const std::string& text) {
     const auto dir = certislam::testing::ScratchDir();

@@ -17,6 +17,7 @@
 #include "slam/io/g2o_io.h"
 #include "slam/io/multirobot_io.h"
 #include "slam/io/trajectory_io.h"
+#include "tests/data_paths.h"
 
 namespace certislam::slam {
 namespace {
@@ -190,7 +191,7 @@ TEST(HostileInput, G2oAbsurdValuesAreRefusedWithTheLine) {
 // Every benchmark file stays within the tolerances (quaternions, magnitudes, weights).
 TEST(HostileInput, BenchmarkFilesPassTheChecks) {
     int files = 0;
-    for (const auto& entry : fs::directory_iterator(std::string(CERTISLAM_DATA_DIR) + "/g2o")) {
+    for (const auto& entry : fs::directory_iterator(test_data::DataPath("g2o"))) {
         if (entry.path().extension() != ".g2o") continue;
         const PoseGraphReadResult r = ReadG2o(entry.path().string());
         EXPECT_TRUE(r.ok()) << r.error;

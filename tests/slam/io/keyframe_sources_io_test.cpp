@@ -6,13 +6,14 @@
 
 #include <filesystem>
 #include <fstream>
+#include "tests/data_paths.h"
 #include "tests/scratch_dir.h"
 
 namespace certislam::slam {
 namespace {
 
 namespace fs = std::filesystem;
-const std::string kLidar = std::string(CERTISLAM_DATA_DIR) + "/lidar/";
+const std::string kLidar = test_data::DataPath("lidar/");
 const std::string kKaist = kLidar + "mulran_kaist03_keyframes";
 const std::string kKitti = kLidar + "kitti00_scancontext_samples";
 

@@ -14,6 +14,7 @@
 #include <random>
 
 #include "slam/io/keyframe_sources_io.h"
+#include "tests/data_paths.h"
 #include "tests/scratch_dir.h"
 
 namespace certislam::slam {
@@ -26,7 +27,7 @@ constexpr double kPoseTol = 1e-9;  // poses travel as float64: exact up to round
 // the odometry message is their nearest rotation.
 constexpr double kRoundedPoseTol = 1e-5;
 constexpr float kOdomFrameTolM = 2e-4f;  // float32 round trip through the odom frame (< 1 km)
-const std::string kKaist = std::string(CERTISLAM_DATA_DIR) + "/lidar/mulran_kaist03_keyframes";
+const std::string kKaist = test_data::DataPath("lidar/mulran_kaist03_keyframes");
 
 fs::path Scratch(const std::string& name) {
     const fs::path dir = certislam::testing::ScratchDir();

@@ -56,23 +56,23 @@ LoopMatcherActor::LoopMatcherActor(zmq::context_t& context, TeamWiring wiring,
     : NodeActor("loop_matcher", context, std::move(wiring)),
       config_(config),
       gate_((config.Validate(), GateConfig(config))),
-      workers_(std::make_unique<boost::asio::thread_pool>(config.registration_threads)),
       pcm_(config.pcm) {}
 
-LoopMatcherActor::~LoopMatcherActor() {
-    Stop();
-    workers_->stop();  // OnStop() runs only if the actor ran
-    workers_->join();
-}
+LoopMatcherActor::~LoopMatcherActor() { Stop(); }
 
 void LoopMatcherActor::OnStop() {
-    workers_->stop();  // registrations not started are dropped; running ones finish
-    workers_->join();
+    if (workers_) {
+        workers_->stop();  // registrations not started are dropped; running ones finish
+        workers_->join();
+        workers_.reset();
+    }
     registrations_.clear();
     CloseEndpoints();
 }
 
 void LoopMatcherActor::OnStart() {
+    // Each run of the actor has its own workers (a stopped pool cannot be started again).
+    workers_ = std::make_unique<boost::asio::thread_pool>(config_.registration_threads);
     loops_out_ = &OpenServer(Edge::kLoops);
     clouds_server_ = &OpenServer(Edge::kClouds, transport::Role::kRouter);
     OpenClient(Edge::kKeyframes, RobotId());

@@ -150,7 +150,7 @@ class LoopMatcherActor final : public NodeActor {
     std::map<slam::PoseId, std::shared_ptr<LazyPrepared>> prepared_;
     std::deque<slam::PoseId> prepared_order_;  ///< prepared_'s keys, least recently used first
     slam::CloudRequestGate gate_;
-    std::unique_ptr<boost::asio::thread_pool> workers_;      ///< registration_threads threads
+    std::unique_ptr<boost::asio::thread_pool> workers_;      ///< while running
     std::deque<Registration> registrations_;                 ///< queued, in candidate order
     std::map<slam::PoseId, slam::ScanContext> descriptors_;  ///< own and lower robots'
     std::map<std::uint64_t, Pending> pending_;  ///< request id -> candidate that fetched

@@ -95,6 +95,7 @@ FrontEndRun RunFrontEnd(const LoopMatcherConfig& matcher_config) {
     }
     // The test listens where solvers would: both robots' loop streams.
     std::vector<std::unique_ptr<transport::Endpoint>> listeners;
+    listeners.reserve(robots.size());
     for (int r : robots) {
         listeners.push_back(std::make_unique<transport::Endpoint>(
             context, ClientConfig(InprocWiring(0, robots), Edge::kLoops, r)));

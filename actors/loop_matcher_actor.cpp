@@ -3,7 +3,9 @@
 // worker threads (verdicts applied in candidate order), PCM, loop closures (and withdrawals) out.
 #include "actors/loop_matcher_actor.h"
 
+#include <pthread.h>
 #include <algorithm>
+
 #include <boost/asio/post.hpp>
 #include <cmath>
 #include <stdexcept>
@@ -60,6 +62,7 @@ LoopMatcherActor::LoopMatcherActor(zmq::context_t& context, TeamWiring wiring,
 
 LoopMatcherActor::~LoopMatcherActor() { Stop(); }
 
+// Verdicts not applied yet are lost with the workers (a stopped matcher is not started again).
 void LoopMatcherActor::OnStop() {
     if (workers_) {
         workers_->stop();  // registrations not started are dropped; running ones finish
@@ -269,6 +272,7 @@ void LoopMatcherActor::Verify(const slam::LoopCandidate& c,
     auto task = std::make_shared<std::packaged_task<slam::RegistrationResult()>>(
         [source = std::move(source), target = std::move(target), yaw = c.yaw_rad,
          config = config_.registration] {
+            pthread_setname_np(pthread_self(), "registration");  // `top -H`, perf
             return slam::RegisterScans(source->Get(), target->Get(), slam::YawGuess(yaw), config);
         });
     // Two queued per thread keep the workers busy; more would hold prepared clouds for nothing.
@@ -284,10 +288,9 @@ void LoopMatcherActor::ApplyRegistrations(std::size_t at_most) {
             front.result.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
             return;
         }
-        const slam::LoopCandidate candidate = front.candidate;
-        const slam::RegistrationResult result = front.result.get();
-        registrations_.pop_front();
-        Apply(candidate, result);
+        Registration done = std::move(front);
+        registrations_.pop_front();  // first: a registration that threw is dropped, not retried
+        Apply(done.candidate, done.result.get());
     }
 }
 

@@ -59,7 +59,8 @@ struct LoopMatcherConfig {
     int prepared_clouds = 16;
     /// Worker threads running the registrations, >= 1. Verdicts are applied in candidate order
     /// whatever the threads' timing; with place_window > 0 the gate waits for every verdict
-    /// before admitting the next inter-robot candidate, as it needs them.
+    /// before admitting the next inter-robot candidate, as it needs them (so inter-robot
+    /// candidates then register one at a time).
     int registration_threads = 2;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.

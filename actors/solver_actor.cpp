@@ -270,9 +270,12 @@ void SolverActor::EndRefinementWhenSpent(const certify::SolverStepResult& step) 
 }
 
 bool SolverActor::PublishDue() const {
-    // Once the graph is final every step's poses go out: the team converges on them, and a
-    // robot stepping against late poses declares convergence where the team has not.
-    return IsFinal() || std::chrono::steady_clock::now() - last_publish_ >= config_.publish_period;
+    // Once the graph is final, or has not changed for kGraphSettled (a robot that never ends its
+    // streams), every step's poses go out: the team converges on them, and a robot stepping
+    // against late poses declares convergence where the team has not.
+    const auto now = std::chrono::steady_clock::now();
+    return IsFinal() || now - changed_ >= kGraphSettled ||
+           now - last_publish_ >= config_.publish_period;
 }
 
 void SolverActor::Publish() {

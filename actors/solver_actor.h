@@ -33,9 +33,9 @@ struct SolverActorConfig {
     std::chrono::milliseconds bundle_period{300};  ///< converged block to the certifier, > 0
     /// Public poses after a step at most this often while the graph grows (a later step's poses
     /// wait for the next tick past it; nothing is lost, the newest poses go out), >= 0; 0: after
-    /// every step. Once the graph is final every step's poses go out at once. While the graph grows
-    /// every step moves the block: without a period the poses of every step would cross (most of a
-    /// team's solver bytes).
+    /// every step. Once the graph is final, or unchanged for SolverActor::kGraphSettled, every
+    /// step's poses go out at once. While the graph grows every step moves the block: without a
+    /// period the poses of every step would cross.
     std::chrono::milliseconds publish_period{50};
     std::string log_path;      ///< durable log of accepted loop closures (replayed); empty: none
     std::string log_identity;  ///< the mission identity written in a new log's header
@@ -94,6 +94,9 @@ struct SolverSnapshot {
 /// One robot's RBCD solver.
 class SolverActor final : public NodeActor {
   public:
+    /// A graph unchanged this long is settled: publish_period no longer holds poses back.
+    static constexpr std::chrono::seconds kGraphSettled{1};
+
     SolverActor(zmq::context_t& context, const TeamWiring& wiring, const SolverActorConfig& config);
     ~SolverActor() override { Stop(); }
 

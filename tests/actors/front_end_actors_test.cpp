@@ -158,8 +158,9 @@ TEST(FrontEndActors, CandidateCapRegistersTheBestCandidatePerKeyframeAndRobot) {
 }
 
 // Registrations on four worker threads finish in any order, but their verdicts are applied in
-// candidate order: the same registrations, the same verified loops, the same accepted loops with
-// the same transforms as on one thread.
+// candidate order (PCM's input order): the same registrations, the same verified loops, the same
+// accepted loops with the same transforms as on one thread. (With a place window the candidates
+// themselves depend on the robots' arrival order, so two runs cannot be compared.)
 TEST(FrontEndActors, RegistrationThreadsGiveTheOneThreadLoops) {
     LoopMatcherConfig config;  // no candidate cap: the candidates do not depend on arrival order
     config.registration_threads = 1;

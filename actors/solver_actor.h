@@ -95,7 +95,7 @@ struct SolverSnapshot {
 class SolverActor final : public NodeActor {
   public:
     /// A graph unchanged this long is settled: publish_period no longer holds poses back.
-    static constexpr std::chrono::seconds kGraphSettled{1};
+    static constexpr std::chrono::seconds kGraphSettled{3};
 
     SolverActor(zmq::context_t& context, const TeamWiring& wiring, const SolverActorConfig& config);
     ~SolverActor() override { Stop(); }

@@ -60,8 +60,6 @@ LoopMatcherActor::LoopMatcherActor(zmq::context_t& context, TeamWiring wiring,
       gate_((config.Validate(), GateConfig(config))),
       pcm_(config.pcm) {}
 
-LoopMatcherActor::~LoopMatcherActor() { Stop(); }
-
 // Verdicts not applied yet are lost with the workers (a stopped matcher is not started again).
 void LoopMatcherActor::OnStop() {
     if (workers_) {
@@ -272,7 +270,9 @@ void LoopMatcherActor::Verify(const slam::LoopCandidate& c,
     auto task = std::make_shared<std::packaged_task<slam::RegistrationResult()>>(
         [source = std::move(source), target = std::move(target), yaw = c.yaw_rad,
          config = config_.registration] {
-            pthread_setname_np(pthread_self(), "registration");  // `top -H`, perf
+            thread_local const bool named =  // once per worker, for `top -H` and perf
+                pthread_setname_np(pthread_self(), "registration") == 0;
+            (void)named;
             return slam::RegisterScans(source->Get(), target->Get(), slam::YawGuess(yaw), config);
         });
     // Two queued per thread keep the workers busy; more would hold prepared clouds for nothing.

@@ -4,7 +4,7 @@
 // is requested only for candidates the cloud-request gate admits (one open request per place and
 // robot pair, a cloud fetched once) and travels downsampled at the registration voxel; GICP seeded
 // by the Scan Context yaw verifies (on a pool of worker threads, each verdict applied in the order
-// the candidates came, so the loop set is the one-thread one); verified loops pass pairwise
+// the candidates came, as one thread would); verified loops pass pairwise
 // consistency maximisation (re-evaluated on each new loop: a loop that drops out of the consistent
 // set is withdrawn) and go to both robots' solvers.
 #pragma once
@@ -71,7 +71,7 @@ struct LoopMatcherConfig {
 class LoopMatcherActor final : public NodeActor {
   public:
     LoopMatcherActor(zmq::context_t& context, TeamWiring wiring, LoopMatcherConfig config);
-    ~LoopMatcherActor() override;
+    ~LoopMatcherActor() override { Stop(); }
 
     /// Loops accepted now (sent and not withdrawn).
     int LoopsFound() const { return loops_.load(); }

@@ -136,7 +136,7 @@ class SolverActor final : public NodeActor {
     void Heartbeat();
     void SendBundle();
     void Publish();
-    bool PublishDue() const;  ///< publish_period passed, or the graph is final
+    bool PublishDue() const;  ///< publish_period passed, or the graph final or settled
     void UpdateSnapshot();
     /// What a snapshot shows that a tick can change (the rest changes with the graph, `changed_`).
     using SnapshotKey = std::tuple<std::uint64_t, std::uint64_t, std::uint64_t, bool, bool, bool,

@@ -22,7 +22,7 @@ using certislam::testing::WriteScratch;
 /// Distributed vs in-process cost (as in solve_distributed_test.cpp).
 constexpr double kRelCost = 1e-6;
 
-std::string Data(const std::string& name) { return certislam::test_data::G2oPath(name); }
+using certislam::test_data::G2oPath;
 
 nlohmann::json Json(const std::string& args) {
     const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " " + args + " --json 2>&1");
@@ -33,9 +33,9 @@ nlohmann::json Json(const std::string& args) {
 double RelDiff(double a, double b) { return std::abs(a - b) / std::abs(b); }
 
 TEST(LeanRobot, SolveDistributedRunsItPerRobotAndCertifiesTheInProcessOptimum) {
-    const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --robots 1 --quiet");
+    const auto central = Json("solve " + G2oPath("smallGrid3D.g2o") + " --robots 1 --quiet");
     for (const std::string transport : {"tcp", "ipc"}) {
-        const auto team = Json("solve " + Data("smallGrid3D.g2o") +
+        const auto team = Json("solve " + G2oPath("smallGrid3D.g2o") +
                                " --robots 3 --distributed --timeout 120 --transport " + transport);
         ASSERT_FALSE(team.is_discarded()) << transport;
         EXPECT_EQ(team["robot_executable"], "certislam-robot") << transport;
@@ -47,13 +47,13 @@ TEST(LeanRobot, SolveDistributedRunsItPerRobotAndCertifiesTheInProcessOptimum) {
 }
 
 TEST(LeanRobot, TwoProcessesOverTcpCertifyAndWriteTheirReports) {
-    const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --quiet");
+    const auto central = Json("solve " + G2oPath("smallGrid3D.g2o") + " --quiet");
     const auto out = certislam::testing::ScratchDir() / "out";
     std::filesystem::create_directories(out);
     const std::string config = WriteScratch("tcp.yaml",
                                             "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
                                             "  graph: " +
-                                                Data("smallGrid3D.g2o") +
+                                                G2oPath("smallGrid3D.g2o") +
                                                 "\nnetwork:\n"
                                                 "  0: {host: 127.0.0.1, base_port: 27910}\n"
                                                 "  1: {host: 127.0.0.1, base_port: 27920}\n");
@@ -77,7 +77,7 @@ TEST(LeanRobot, GivesTheRobotCommandsErrorsAndRefusesKeyframeSources) {
         WriteScratch("ipc.yaml",
                      "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
                      "  graph: " +
-                         Data("tinyGrid3D.g2o") + "\nnetwork:\n  0: {ipc_dir: /tmp/" + long_dir +
+                         G2oPath("tinyGrid3D.g2o") + "\nnetwork:\n  0: {ipc_dir: /tmp/" + long_dir +
                          "}\n  1: {ipc_dir: /tmp}\n");
     const ShellResult lean =
         Shell(std::string(CERTISLAM_ROBOT_BINARY) + " " + bad_ipc + " --id 1 --timeout 5 2>&1");

@@ -23,7 +23,7 @@ using certislam::testing::WriteScratch;
 /// quaternions' cross the wire as matrices: the same problem).
 constexpr double kRelCost = 1e-6;
 
-std::string Data(const std::string& name) { return certislam::test_data::G2oPath(name); }
+using certislam::test_data::G2oPath;
 
 nlohmann::json Json(const std::string& args, int expected_exit = 0) {
     const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " " + args + " --json 2>&1");
@@ -35,9 +35,9 @@ double RelDiff(double a, double b) { return std::abs(a - b) / std::abs(b); }
 
 TEST(SolveDistributed, TwoAndFiveRobotsCertifyTheInProcessOptimumAndSayWhichPathRan) {
     for (const auto& [file, robots] : {std::pair{"tinyGrid3D.g2o", 2}, {"smallGrid3D.g2o", 5}}) {
-        const auto central = Json("solve " + Data(file) + " --robots 1 --quiet");
-        const auto team =
-            Json("solve " + Data(file) + " --robots " + std::to_string(robots) + " --distributed");
+        const auto central = Json("solve " + G2oPath(file) + " --robots 1 --quiet");
+        const auto team = Json("solve " + G2oPath(file) + " --robots " + std::to_string(robots) +
+                               " --distributed");
         ASSERT_FALSE(team.is_discarded());
         EXPECT_EQ(central["path"], "in_process");
         EXPECT_EQ(team["path"], "distributed");
@@ -66,8 +66,8 @@ TEST(SolveDistributed, TwoAndFiveRobotsCertifyTheInProcessOptimumAndSayWhichPath
 TEST(SolveDistributed, LobpcgByDefaultAndLanczosCertifyTheInProcessOptimum) {
     for (const auto& [file, robots] : {std::pair{"tinyGrid3D.g2o", 2}, {"smallGrid3D.g2o", 5}}) {
         const std::string args =
-            "solve " + Data(file) + " --robots " + std::to_string(robots) + " --distributed";
-        const auto central = Json("solve " + Data(file) + " --robots 1 --quiet");
+            "solve " + G2oPath(file) + " --robots " + std::to_string(robots) + " --distributed";
+        const auto central = Json("solve " + G2oPath(file) + " --robots 1 --quiet");
         const auto lanczos = Json(args + " --eigensolver lanczos");
         const auto lobpcg = Json(args);
         ASSERT_FALSE(lobpcg.is_discarded());
@@ -87,7 +87,7 @@ TEST(SolveDistributed, LobpcgByDefaultAndLanczosCertifyTheInProcessOptimum) {
         EXPECT_GT(lanczos["lanczos_steps"].get<int>(), 0) << file;
     }
     const ShellResult alone = Shell(std::string(CERTISLAM_BINARY) + " solve " +
-                                    Data("tinyGrid3D.g2o") + " --eigensolver lobpcg 2>&1");
+                                    G2oPath("tinyGrid3D.g2o") + " --eigensolver lobpcg 2>&1");
     EXPECT_EQ(alone.exit_code, 2) << alone.out;
     EXPECT_NE(alone.out.find("--eigensolver needs --distributed"), std::string::npos) << alone.out;
 }
@@ -95,9 +95,9 @@ TEST(SolveDistributed, LobpcgByDefaultAndLanczosCertifyTheInProcessOptimum) {
 // An in-process team's sockets grow with the square of its size (a subscription per peer and
 // edge): 20 robots need more than libzmq's default 1023 sockets per context.
 TEST(SolveDistributed, TwentyRobotsInOneProcessOpenTheirSocketsAndCertify) {
-    const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --robots 1 --quiet");
+    const auto central = Json("solve " + G2oPath("smallGrid3D.g2o") + " --robots 1 --quiet");
     const auto team =
-        Json("solve " + Data("smallGrid3D.g2o") + " --robots 20 --distributed --timeout 120");
+        Json("solve " + G2oPath("smallGrid3D.g2o") + " --robots 20 --distributed --timeout 120");
     ASSERT_FALSE(team.is_discarded());
     EXPECT_EQ(team["robots"].get<int>(), 20);
     EXPECT_EQ(team["verdict"], "certified");
@@ -106,21 +106,21 @@ TEST(SolveDistributed, TwentyRobotsInOneProcessOpenTheirSocketsAndCertify) {
 
 TEST(SolveDistributed, GraphsItCannotSplitFailNamingTheFile) {
     for (const auto& [file, why] : {std::pair{"tinyGrid3D.g2o", "must be in [1, n = 9]"}}) {
-        const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " solve " + Data(file) +
+        const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " solve " + G2oPath(file) +
                                     " --robots 20 --distributed 2>&1");
         EXPECT_EQ(r.exit_code, 1) << r.out;
-        EXPECT_NE(r.out.find(Data(file)), std::string::npos) << r.out;
+        EXPECT_NE(r.out.find(G2oPath(file)), std::string::npos) << r.out;
         EXPECT_NE(r.out.find(why), std::string::npos) << r.out;
     }
 }
 
 std::string PoseGraphConfig(const std::string& ranges) {
-    return "robots: [0, 1]\nsource:\n  kind: pose_graph\n  graph: " + Data("tinyGrid3D.g2o") +
+    return "robots: [0, 1]\nsource:\n  kind: pose_graph\n  graph: " + G2oPath("tinyGrid3D.g2o") +
            "\n" + ranges;
 }
 
 TEST(RunPoseGraph, VertexRangesFromTheConfigCertifyTheOptimum) {
-    const auto central = Json("solve " + Data("tinyGrid3D.g2o") + " --quiet");
+    const auto central = Json("solve " + G2oPath("tinyGrid3D.g2o") + " --quiet");
     const auto team =
         Json("run " + WriteScratch("ranges.yaml", PoseGraphConfig("  ranges:\n"
                                                                   "    0: {begin: 0, end: 3}\n"
@@ -154,11 +154,11 @@ TEST(RunPoseGraph, BadRangesFailNamingTheKeyPath) {
 }
 
 TEST(RobotPoseGraph, TwoProcessesOverTcpCertifyTheInProcessOptimum) {
-    const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --quiet");
+    const auto central = Json("solve " + G2oPath("smallGrid3D.g2o") + " --quiet");
     const std::string config = WriteScratch("tcp.yaml",
                                             "robots: [0, 1]\nsource:\n  kind: pose_graph\n"
                                             "  graph: " +
-                                                Data("smallGrid3D.g2o") +
+                                                G2oPath("smallGrid3D.g2o") +
                                                 "\nnetwork:\n"
                                                 "  0: {host: 127.0.0.1, base_port: 27710}\n"
                                                 "  1: {host: 127.0.0.1, base_port: 27810}\n");
@@ -183,9 +183,9 @@ TEST(RobotPoseGraph, TwoProcessesOverTcpCertifyTheInProcessOptimum) {
 namespace {
 
 TEST(SolveDistributed, RobotProcessesOverIpcAndTcpCertifyTheInProcessOptimum) {
-    const auto central = Json("solve " + Data("smallGrid3D.g2o") + " --robots 1 --quiet");
+    const auto central = Json("solve " + G2oPath("smallGrid3D.g2o") + " --robots 1 --quiet");
     for (const std::string transport : {"ipc", "tcp"}) {
-        const auto team = Json("solve " + Data("smallGrid3D.g2o") +
+        const auto team = Json("solve " + G2oPath("smallGrid3D.g2o") +
                                " --robots 3 --distributed --timeout 120 --transport " + transport);
         ASSERT_FALSE(team.is_discarded()) << transport;
         EXPECT_EQ(team["transport"], transport);
@@ -205,8 +205,8 @@ TEST(SolveDistributed, RobotProcessesOverIpcAndTcpCertifyTheInProcessOptimum) {
 }
 
 TEST(SolveDistributed, TransportNeedsDistributedAndAnIpcPathMustFit) {
-    const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " solve " + Data("tinyGrid3D.g2o") +
-                                " --transport tcp 2>&1");
+    const ShellResult r = Shell(std::string(CERTISLAM_BINARY) + " solve " +
+                                G2oPath("tinyGrid3D.g2o") + " --transport tcp 2>&1");
     EXPECT_EQ(r.exit_code, 2) << r.out;
     EXPECT_NE(r.out.find("--transport tcp needs --distributed"), std::string::npos) << r.out;
     const std::string long_dir(120, 'x');

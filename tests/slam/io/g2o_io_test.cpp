@@ -18,7 +18,7 @@ namespace {
 
 constexpr double kWeightTolerance = 1e-9;  ///< relative, kappa/tau after a write/read round trip
 
-std::string DataFile(const std::string& name) { return test_data::G2oPath(name); }
+using test_data::G2oPath;
 
 std::string WriteTemp(const std::string& name, const std::string& text) {
     const auto dir = certislam::testing::ScratchDir();
@@ -39,7 +39,7 @@ class RealFile : public ::testing::TestWithParam<FileCase> {};
 
 TEST_P(RealFile, PosesAndEdgesAsTheReadmeCounts) {
     const FileCase c = GetParam();
-    const PoseGraphReadResult read = ReadG2o(DataFile(c.file));
+    const PoseGraphReadResult read = ReadG2o(G2oPath(c.file));
     ASSERT_TRUE(read.ok()) << read.error;
     EXPECT_EQ(read.graph.d, c.d);
     EXPECT_EQ(read.graph.n, c.n);
@@ -72,7 +72,7 @@ INSTANTIATE_TEST_SUITE_P(
 
 TEST(G2oQuirks, BlankLinesDoNotRepeatThePreviousEdge) {
     // kitti_00 has blank lines at 4541 and 4679: other readers re-add the edge before them.
-    const PoseGraphReadResult read = ReadG2o(DataFile("kitti_00.g2o"));
+    const PoseGraphReadResult read = ReadG2o(G2oPath("kitti_00.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     const auto& edges = read.graph.edges;
     int repeats = 0;
@@ -92,7 +92,7 @@ TEST(G2oQuirks, BlankLinesDoNotRepeatThePreviousEdge) {
 }
 
 TEST(G2oQuirks, ExactDuplicateEdgesAreKept) {
-    const PoseGraphReadResult read = ReadG2o(DataFile("CSAIL.g2o"));
+    const PoseGraphReadResult read = ReadG2o(G2oPath("CSAIL.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     const auto count = std::count_if(read.graph.edges.begin(), read.graph.edges.end(),
                                      [](const auto& e) { return e.i == 323 && e.j == 855; });
@@ -100,7 +100,7 @@ TEST(G2oQuirks, ExactDuplicateEdgesAreKept) {
 }
 
 TEST(G2oQuirks, ReversedEdgesAndMultiEdgesKeptAsWritten) {
-    const PoseGraphReadResult read = ReadG2o(DataFile("cubicle.g2o"));
+    const PoseGraphReadResult read = ReadG2o(G2oPath("cubicle.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     const auto reversed = std::count_if(read.graph.edges.begin(), read.graph.edges.end(),
                                         [](const auto& e) { return e.i > e.j; });
@@ -108,11 +108,11 @@ TEST(G2oQuirks, ReversedEdgesAndMultiEdgesKeptAsWritten) {
 }
 
 TEST(G2oQuirks, MissingVertexLinesGiveNFromTheEdgesAndNoGuess) {
-    const PoseGraphReadResult csail = ReadG2o(DataFile("CSAIL.g2o"));  // no VERTEX lines
+    const PoseGraphReadResult csail = ReadG2o(G2oPath("CSAIL.g2o"));  // no VERTEX lines
     ASSERT_TRUE(csail.ok()) << csail.error;
     EXPECT_EQ(csail.graph.n, 1045);
     EXPECT_FALSE(csail.graph.initial_guess.has_value());
-    const PoseGraphReadResult mit = ReadG2o(DataFile("MIT.g2o"));  // one VERTEX per pose
+    const PoseGraphReadResult mit = ReadG2o(G2oPath("MIT.g2o"));  // one VERTEX per pose
     ASSERT_TRUE(mit.ok()) << mit.error;
     ASSERT_TRUE(mit.graph.initial_guess.has_value());
     EXPECT_EQ(mit.graph.initial_guess->cols(), 3 * 808);
@@ -176,12 +176,12 @@ TEST(G2oRejects, DisconnectedGraph) {
 }
 
 TEST(G2oRejects, MissingFile) {
-    const PoseGraphReadResult read = ReadG2o(DataFile("no_such_file.g2o"));
+    const PoseGraphReadResult read = ReadG2o(G2oPath("no_such_file.g2o"));
     EXPECT_EQ(read.status, PoseGraphReadResult::Status::kFileError);
 }
 
 TEST(G2oWrite, RoundTripKeepsWeightsAndCost) {
-    const PoseGraphReadResult read = ReadG2o(DataFile("smallGrid3D.g2o"));
+    const PoseGraphReadResult read = ReadG2o(G2oPath("smallGrid3D.g2o"));
     ASSERT_TRUE(read.ok()) << read.error;
     ASSERT_TRUE(read.graph.initial_guess.has_value());
     const std::string path = WriteTemp("roundtrip.g2o", "");

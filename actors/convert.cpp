@@ -17,6 +17,7 @@ constexpr double kQuaternionNormTolerance = 1e-3;
 /// A measured rotation further than this (Frobenius) from its quaternion's goes as a matrix.
 constexpr double kRotationAsMatrix = 1e-14;
 constexpr std::uint32_t kPointStride = sizeof(float) * 3;
+constexpr std::uint32_t kMaxSweepColor = 1u << 16;  // colours a team of 65536 robots could need
 static_assert(sizeof(Eigen::Vector3f) == kPointStride, "clouds must be packed float32 xyz");
 
 /// Clouds encoded by this process, by the address of their bytes: a frame that comes back over
@@ -281,6 +282,7 @@ v1::PublicPoses ToProto(const certify::PoseBlocks& poses) {
     out.set_dimension_d(3);
     out.set_staircase_level(static_cast<std::uint32_t>(poses.staircase_level));
     out.set_team_round(poses.team_round);
+    out.set_sweep_color(static_cast<std::uint32_t>(poses.sweep_color));
     for (const auto& id : poses.ids) *out.add_pose_ids() = ToProto(id);
     // Column-major: block k's r x 4 values are contiguous.
     out.mutable_blocks()->Assign(poses.blocks.data(), poses.blocks.data() + poses.blocks.size());
@@ -293,6 +295,8 @@ std::optional<certify::PoseBlocks> FromProto(const v1::PublicPoses& poses) {
     const auto count = static_cast<std::size_t>(poses.pose_ids_size());
     if (static_cast<std::size_t>(poses.blocks_size()) != count * r * 4) return std::nullopt;
     if (!AllFinite(poses.blocks())) return std::nullopt;
+    // A greedy colouring needs at most one colour more than a robot has neighbours.
+    if (poses.sweep_color() > kMaxSweepColor) return std::nullopt;
     certify::PoseBlocks out;
     for (const auto& id : poses.pose_ids()) {
         const auto parsed = FromProto(id);
@@ -304,6 +308,7 @@ std::optional<certify::PoseBlocks> FromProto(const v1::PublicPoses& poses) {
     out.iteration = poses.iteration();
     out.staircase_level = static_cast<int>(poses.staircase_level());
     out.team_round = poses.team_round();
+    out.sweep_color = static_cast<int>(poses.sweep_color());
     return out;
 }
 

@@ -34,6 +34,7 @@ bool SolverActor::InRounds() const {
 void SolverActor::SendRoundPoses(std::uint64_t round) {
     certify::PoseBlocks poses = state_.PublicPoses(steps_);
     poses.team_round = round + 1;
+    poses.sweep_color = rounds_->SweepColor();
     auto proto = ToProto(poses);
     *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     StampSession(&proto);

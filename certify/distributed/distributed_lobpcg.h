@@ -19,7 +19,7 @@ inline constexpr int kMaxBlockSize = 16;
 
 /// Settings of DistributedLobpcg.
 struct LobpcgSettings {
-    int block_size = 4;  ///< Ritz vectors iterated together, 1..16 (the certificate reads one)
+    int block_size = 6;  ///< Ritz vectors iterated together, 1..16 (the certificate reads one)
     int max_iterations = 2000;  ///< iterations at most, >= 1
     /// Converged when ||S x - theta x|| <= tolerance * ||S||_inf for the smallest Ritz pair
     /// (||S||_inf, the largest absolute row sum, bounds lambda_max(S) from above).

@@ -27,6 +27,7 @@ struct PoseBlocks {
     std::uint64_t iteration = 0;    ///< sender's RBCD iteration
     int staircase_level = 0;        ///< sender's saddle escapes so far
     std::uint64_t team_round = 0;   ///< 1 + synchronous round (TeamRounds); 0: asynchronous
+    int sweep_color = 0;            ///< synchronous rounds: the sender's TeamRounds::SweepColor
 };
 
 /// Settings of one robot's solver.

@@ -48,7 +48,16 @@ TeamRounds::TeamRounds(int robot, std::vector<int> robots, std::set<int> neighbo
 
 void TeamRounds::OnPoses(int robot, std::uint64_t round, const PoseBlocks& poses) {
     if (neighbours_.count(robot) == 0 || round + 1 < accepted_prev_) return;
+    if (round == 0) colors_[robot] = poses.sweep_color;
     nbr_[robot][round] = poses;
+}
+
+bool TeamRounds::Earlier(int j, std::uint64_t round) const {
+    if (round == 0) return j < robot_;
+    // A neighbour's colour is in before round 1 (round 0's evaluation waits for its poses); two
+    // neighbours never share one (the higher avoided the lower's), so both see the same order.
+    const auto it = colors_.find(j);
+    return it == colors_.end() ? j < robot_ : it->second < color_;
 }
 
 void TeamRounds::OnSums(int robot, std::uint64_t round, double cost, double grad_norm) {
@@ -68,7 +77,7 @@ bool TeamRounds::HaveNeighbours(std::uint64_t round, bool lower_only) const {
             if (j > robot_ && lower_only && round == 0) continue;
             return false;
         }
-        if (j < robot_ || !lower_only) {
+        if (Earlier(j, round) || !lower_only) {
             if (it->second.count(round) == 0) return false;
         } else if (round == 0) {
             continue;  // placement waits for lower neighbours only
@@ -89,7 +98,7 @@ PoseBlocks TeamRounds::NeighbourPoses(std::uint64_t round, bool extrapolate_high
         const auto& by_round = nbr_.at(j);
         const PoseBlocks* p = nullptr;
         Eigen::MatrixXd blocks;
-        if (extrapolate_higher && j > robot_) {
+        if (extrapolate_higher && !Earlier(j, round)) {
             p = &by_round.at(accepted_);
             const auto prev = by_round.find(accepted_prev_);
             blocks = prev == by_round.end() ? p->blocks
@@ -129,6 +138,11 @@ RoundAction TeamRounds::Next() {
     if (own_.count(current_) == 0) {  // RBCD++ Alg. 3: the sweep from the extrapolated point
         if (!HaveNeighbours(current_, true)) return a;
         if (current_ == 0) {
+            std::set<int> taken;
+            for (int j : neighbours_) {
+                if (j < robot_) taken.insert(colors_.at(j));  // their round-0 poses are in
+            }
+            while (taken.count(color_)) ++color_;
             a.kind = RoundAction::Kind::kAlign;
             a.neighbours = NeighbourPoses(0, true);
             return a;

@@ -1,6 +1,7 @@
 // One robot's share of synchronous RBCD++ over messages (Tian et al., T-RO 2021, Alg. 3 with
-// adaptive restart), without sockets: robots sweep in id order (Gauss-Seidel: robot i starts from
-// lower neighbours' poses of this round and higher neighbours' extrapolated poses), then every
+// adaptive restart), without sockets: robots sweep in colour order (Gauss-Seidel: a robot starts
+// from this round's poses of neighbours of a lower colour and the extrapolated poses of the others;
+// neighbours never share a colour, so each colour's robots sweep at once), then every
 // robot sends its share of f and its block gradient norm (a scalar all-reduce), from which every
 // robot takes the same accept / restart / stop decision. Needs only neighbour exchanges and sums.
 #pragma once
@@ -75,8 +76,16 @@ class TeamRounds {
     std::uint64_t Rounds() const { return swept_; }
     /// Adaptive restarts so far.
     int Restarts() const { return restarts_; }
+    /// This robot's colour in the sweeps' order, set when it is placed (round 0): the smallest
+    /// not taken by a lower neighbour (greedy colouring in id order). Robots of one colour share
+    /// no edge and sweep together; a colour sweeps after every lower one. The round-0 poses
+    /// carry it (PoseBlocks::sweep_color) to the neighbours.
+    int SweepColor() const { return color_; }
 
   private:
+    /// True when neighbour j sweeps `round` before this robot: round 0 in id order, later rounds
+    /// in colour order.
+    bool Earlier(int j, std::uint64_t round) const;
     bool HaveNeighbours(std::uint64_t round, bool lower_only) const;
     PoseBlocks NeighbourPoses(std::uint64_t round, bool extrapolate_higher) const;
     void Decide();
@@ -90,6 +99,8 @@ class TeamRounds {
     TeamRoundsConfig config_;
     std::map<std::uint64_t, Eigen::MatrixXd> own_;  ///< own block by round
     std::map<int, std::map<std::uint64_t, PoseBlocks>> nbr_;
+    std::map<int, int> colors_;  ///< neighbours' sweep colours, from their round-0 poses
+    int color_ = 0;              ///< own sweep colour (set with the round-0 placement)
     std::map<std::uint64_t, std::map<int, std::pair<double, double>>> sums_;
     std::uint64_t current_ = 0;        ///< the round in progress (0: start)
     bool evaluated_ = false;           ///< own sums of current_ sent

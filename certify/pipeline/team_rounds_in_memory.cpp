@@ -55,7 +55,8 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
                         me.StepTo(a.block_tol);
                     }
                     schedule[i].SweepDone(a.round, me.FullBlock(0).blocks);
-                    const PoseBlocks poses = me.PublicPoses(0);
+                    PoseBlocks poses = me.PublicPoses(0);
+                    poses.sweep_color = schedule[i].SweepColor();
                     for (auto& peer : schedule) peer.OnPoses(me.robot(), a.round, poses);
                 }
             }

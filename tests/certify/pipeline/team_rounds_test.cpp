@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -125,6 +127,46 @@ TEST(TeamRounds, RefusesABadConfiguration) {
     TeamRoundsConfig negative_budget;
     negative_budget.refine_rounds = -1;
     EXPECT_THROW(TeamRounds(0, {0, 1}, {1}, negative_budget), std::invalid_argument);
+}
+
+// Robots 0 - 1 - 2 in a chain: the greedy colours are 0, 1, 0, so in round 1 both ends sweep at
+// once (from robot 1's extrapolated poses) and robot 1 waits for both ends; in id order robot 2
+// would wait for robot 1.
+TEST(TeamRounds, AChainSweepsInTwoColours) {
+    const std::vector<int> robots{0, 1, 2};
+    const std::map<int, std::set<int>> neighbours{{0, {1}}, {1, {0, 2}}, {2, {1}}};
+    std::vector<TeamRounds> team;
+    for (int r : robots) team.emplace_back(r, robots, neighbours.at(r), TeamRoundsConfig{});
+    const Eigen::MatrixXd block = Eigen::MatrixXd::Zero(5, 4);
+    const auto sweep = [&](int r, std::uint64_t round) {
+        team[r].SweepDone(round, block);
+        PoseBlocks poses;
+        poses.ids = {{r, 0}};
+        poses.blocks = block;
+        poses.sweep_color = team[r].SweepColor();
+        for (int peer : neighbours.at(r)) team[peer].OnPoses(r, round, poses);
+    };
+    using K = RoundAction::Kind;
+    for (int r : robots) {  // round 0: placement in id order
+        ASSERT_EQ(team[r].Next().kind, K::kAlign) << "robot " << r;
+        sweep(r, 0);
+    }
+    EXPECT_EQ(team[0].SweepColor(), 0);
+    EXPECT_EQ(team[1].SweepColor(), 1);
+    EXPECT_EQ(team[2].SweepColor(), 0);
+    for (int r : robots) {  // round 0's sums: far from converged
+        ASSERT_EQ(team[r].Next().kind, K::kEvaluate) << "robot " << r;
+        for (auto& peer : team) peer.OnSums(r, 0, 1.0, 1.0);
+    }
+    EXPECT_EQ(team[0].Next().kind, K::kSweep);
+    EXPECT_EQ(team[2].Next().kind, K::kSweep);
+    EXPECT_EQ(team[1].Next().kind, K::kWait);
+    sweep(2, 1);
+    EXPECT_EQ(team[1].Next().kind, K::kWait);  // robot 0 has not swept round 1 yet
+    sweep(0, 1);
+    const RoundAction middle = team[1].Next();
+    EXPECT_EQ(middle.kind, K::kSweep);
+    EXPECT_EQ(middle.round, 1u);
 }
 
 }  // namespace

@@ -83,7 +83,10 @@ Eigen::MatrixXd PointOf(const slam::PoseGraph& graph, const std::string& point,
     if (point == "rounds") {
         const certify::InMemoryTeam team = certify::RunTeamRoundsInMemory(
             slam::SplitGraph(graph, partition), certify::SolverConfig{}, rounds);
-        if (!team.AllConverged()) throw std::runtime_error("the rounds did not converge");
+        if (!team.AllConverged()) {
+            throw std::runtime_error("the rounds did not converge in " +
+                                     std::to_string(rounds.max_rounds) + " rounds");
+        }
         std::fprintf(stderr, "rounds: %llu swept, %d restarts\n",
                      static_cast<unsigned long long>(team.rounds.front()), team.restarts.front());
         return team.X();
@@ -147,6 +150,8 @@ int RunEigenBench(int argc, char** argv) {
     certify::TeamRoundsConfig rounds;
     app.add_option("--rounds-tol", rounds.rel_grad_tol,
                    "--point rounds: the rounds' relative gradient tolerance");
+    app.add_option("--max-rounds", rounds.max_rounds, "--point rounds: rounds before giving up")
+        ->check(CLI::PositiveNumber);
     app.add_option("--block", lobpcg.block_size, "LOBPCG block size")->check(CLI::Range(1, 16));
     app.add_option("--drop", lobpcg.drop_tolerance, "LOBPCG Gram drop tolerance");
     app.add_option("--shift", lobpcg.shift_relative, "LOBPCG preconditioner shift (relative)");

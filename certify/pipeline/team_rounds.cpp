@@ -48,7 +48,7 @@ TeamRounds::TeamRounds(int robot, std::vector<int> robots, std::set<int> neighbo
 
 void TeamRounds::OnPoses(int robot, std::uint64_t round, const PoseBlocks& poses) {
     if (neighbours_.count(robot) == 0 || round + 1 < accepted_prev_) return;
-    if (round == 0) colors_[robot] = poses.sweep_color;
+    if (round == 0) colors_.emplace(robot, poses.sweep_color);  // the first one stays
     nbr_[robot][round] = poses;
 }
 

@@ -212,6 +212,7 @@ TEST(Convert, PublicPosesRoundTripAndRejectCountMismatch) {
     poses.blocks = Eigen::MatrixXd::Random(5, 8);
     poses.iteration = 42;
     poses.staircase_level = 1;
+    poses.sweep_color = 3;
     std::string bytes;
     ASSERT_TRUE(ToProto(poses).SerializeToString(&bytes));
     v1::PublicPoses parsed;
@@ -222,7 +223,11 @@ TEST(Convert, PublicPosesRoundTripAndRejectCountMismatch) {
     EXPECT_EQ(back->blocks, poses.blocks);
     EXPECT_EQ(back->iteration, 42u);
     EXPECT_EQ(back->staircase_level, 1);
+    EXPECT_EQ(back->sweep_color, 3);
 
+    parsed.set_sweep_color(1u << 31);  // more colours than any team could need
+    EXPECT_FALSE(FromProto(parsed).has_value());
+    ASSERT_TRUE(parsed.ParseFromString(bytes));
     parsed.mutable_blocks()->RemoveLast();
     EXPECT_FALSE(FromProto(parsed).has_value());
     ASSERT_TRUE(parsed.ParseFromString(bytes));

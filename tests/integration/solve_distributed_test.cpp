@@ -82,7 +82,7 @@ TEST(SolveDistributed, LobpcgByDefaultAndLanczosCertifyTheInProcessOptimum) {
         }
         // Exchanges at the rounds' own iterate vary with where the rounds stop; LOBPCG's fewer
         // exchanges at one point:
-        // Traffic.Torus3DOptimumNeedsAThirdOfLanczosExchangesAndFewerProducts.
+        // Traffic.Torus3DOptimumNeedsAThirdOfLanczosExchanges.
         EXPECT_GT(lobpcg["lanczos_steps"].get<int>(), 0) << file;
         EXPECT_GT(lanczos["lanczos_steps"].get<int>(), 0) << file;
     }

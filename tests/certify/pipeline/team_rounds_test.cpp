@@ -129,44 +129,87 @@ TEST(TeamRounds, RefusesABadConfiguration) {
     EXPECT_THROW(TeamRounds(0, {0, 1}, {1}, negative_budget), std::invalid_argument);
 }
 
-// Robots 0 - 1 - 2 in a chain: the greedy colours are 0, 1, 0, so in round 1 both ends sweep at
-// once (from robot 1's extrapolated poses) and robot 1 waits for both ends; in id order robot 2
-// would wait for robot 1.
-TEST(TeamRounds, AChainSweepsInTwoColours) {
-    const std::vector<int> robots{0, 1, 2};
-    const std::map<int, std::set<int>> neighbours{{0, {1}}, {1, {0, 2}}, {2, {1}}};
-    std::vector<TeamRounds> team;
-    for (int r : robots) team.emplace_back(r, robots, neighbours.at(r), TeamRoundsConfig{});
-    const Eigen::MatrixXd block = Eigen::MatrixXd::Zero(5, 4);
-    const auto sweep = [&](int r, std::uint64_t round) {
-        team[r].SweepDone(round, block);
+// One robot's TeamRounds per robot of a team with the given edges between robots; messages
+// are delivered by hand, so a test sees who waits for whom.
+struct HandTeam {
+    explicit HandTeam(std::map<int, std::set<int>> edges) : neighbours(std::move(edges)) {
+        for (const auto& [r, n] : neighbours) robots.push_back(r);
+        for (int r : robots) team.emplace(r, TeamRounds(r, robots, neighbours.at(r), {}));
+    }
+    TeamRounds& operator[](int r) { return team.at(r); }
+    /// Robot r's block after its sweep of `round`: distinct per robot and round.
+    static Eigen::MatrixXd Block(int r, std::uint64_t round) {
+        return Eigen::MatrixXd::Constant(5, 4, 10.0 * r + static_cast<double>(round));
+    }
+    void Sweep(int r, std::uint64_t round) {
+        team.at(r).SweepDone(round, Block(r, round));
         PoseBlocks poses;
         poses.ids = {{r, 0}};
-        poses.blocks = block;
-        poses.sweep_color = team[r].SweepColor();
-        for (int peer : neighbours.at(r)) team[peer].OnPoses(r, round, poses);
-    };
+        poses.blocks = Block(r, round);
+        poses.sweep_color = team.at(r).SweepColor();
+        for (int peer : neighbours.at(r)) team.at(peer).OnPoses(r, round, poses);
+    }
+    /// Round 0: placements in id order, then every robot's sums (far from converged).
+    void Place() {
+        for (int r : robots) {
+            ASSERT_EQ(team.at(r).Next().kind, RoundAction::Kind::kAlign) << "robot " << r;
+            Sweep(r, 0);
+        }
+        for (int r : robots) {
+            ASSERT_EQ(team.at(r).Next().kind, RoundAction::Kind::kEvaluate) << "robot " << r;
+            for (auto& [q, peer] : team) peer.OnSums(r, 0, 1.0, 1.0);
+        }
+    }
+    std::map<int, std::set<int>> neighbours;
+    std::vector<int> robots;
+    std::map<int, TeamRounds> team;
+};
+
+// Robots 0 - 1 - 2 in a chain: the greedy colours are 0, 1, 0, so in round 1 both ends sweep at
+// once (robot 2 from robot 1's round-0 poses) and robot 1 waits for both ends and sweeps from
+// their round-1 poses; in id order robot 2 would wait for robot 1.
+TEST(TeamRounds, AChainSweepsInTwoColours) {
+    HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
+    t.Place();
+    EXPECT_EQ(t[0].SweepColor(), 0);
+    EXPECT_EQ(t[1].SweepColor(), 1);
+    EXPECT_EQ(t[2].SweepColor(), 0);
     using K = RoundAction::Kind;
-    for (int r : robots) {  // round 0: placement in id order
-        ASSERT_EQ(team[r].Next().kind, K::kAlign) << "robot " << r;
-        sweep(r, 0);
-    }
-    EXPECT_EQ(team[0].SweepColor(), 0);
-    EXPECT_EQ(team[1].SweepColor(), 1);
-    EXPECT_EQ(team[2].SweepColor(), 0);
-    for (int r : robots) {  // round 0's sums: far from converged
-        ASSERT_EQ(team[r].Next().kind, K::kEvaluate) << "robot " << r;
-        for (auto& peer : team) peer.OnSums(r, 0, 1.0, 1.0);
-    }
-    EXPECT_EQ(team[0].Next().kind, K::kSweep);
-    EXPECT_EQ(team[2].Next().kind, K::kSweep);
-    EXPECT_EQ(team[1].Next().kind, K::kWait);
-    sweep(2, 1);
-    EXPECT_EQ(team[1].Next().kind, K::kWait);  // robot 0 has not swept round 1 yet
-    sweep(0, 1);
-    const RoundAction middle = team[1].Next();
-    EXPECT_EQ(middle.kind, K::kSweep);
+    const RoundAction end = t[2].Next();
+    ASSERT_EQ(end.kind, K::kSweep);
+    EXPECT_EQ(end.neighbours.blocks, HandTeam::Block(1, 0));
+    EXPECT_EQ(t[0].Next().kind, K::kSweep);
+    EXPECT_EQ(t[1].Next().kind, K::kWait);
+    t.Sweep(0, 1);
+    EXPECT_EQ(t[1].Next().kind, K::kWait);  // robot 2, the higher end, has not swept round 1
+    t.Sweep(2, 1);
+    const RoundAction middle = t[1].Next();
+    ASSERT_EQ(middle.kind, K::kSweep);
     EXPECT_EQ(middle.round, 1u);
+    Eigen::MatrixXd both(5, 8);
+    both << HandTeam::Block(0, 1), HandTeam::Block(2, 1);
+    EXPECT_EQ(middle.neighbours.blocks, both);
+}
+
+// Colours follow ids, not the chain: the path 0 - 2 - 3 - 1 takes colours 0, 0, 1, 2 (robots 0
+// and 1 first, then 2, then 3), and a colour's robot waits only for lower colours.
+TEST(TeamRounds, ColoursFollowIdsOnAChainNumberedOutOfOrder) {
+    HandTeam t({{0, {2}}, {1, {3}}, {2, {0, 3}}, {3, {1, 2}}});
+    t.Place();
+    EXPECT_EQ(t[0].SweepColor(), 0);
+    EXPECT_EQ(t[1].SweepColor(), 0);
+    EXPECT_EQ(t[2].SweepColor(), 1);
+    EXPECT_EQ(t[3].SweepColor(), 2);
+    using K = RoundAction::Kind;
+    EXPECT_EQ(t[1].Next().kind, K::kSweep);  // before robot 3, its higher-id neighbour
+    EXPECT_EQ(t[2].Next().kind, K::kWait);
+    EXPECT_EQ(t[3].Next().kind, K::kWait);
+    t.Sweep(0, 1);
+    t.Sweep(1, 1);
+    EXPECT_EQ(t[2].Next().kind, K::kSweep);
+    EXPECT_EQ(t[3].Next().kind, K::kWait);
+    t.Sweep(2, 1);
+    EXPECT_EQ(t[3].Next().kind, K::kSweep);
 }
 
 }  // namespace

@@ -36,6 +36,11 @@ using Clock = std::chrono::steady_clock;
 
 constexpr double kGraceSeconds = 30.0;  ///< past --timeout before the robots are killed
 constexpr int kEdgePorts = 7;           ///< tcp ports per robot: base_port + 1 .. + 7
+constexpr int kFirstPort = 20000;       ///< robots' tcp ports from here up to the ephemeral range
+constexpr int kDefaultEphemeralLow = 32768;  ///< Linux's default when /proc does not say
+/// Teams started at most, for tcp: another process may bind a checked port before a robot does.
+constexpr int kPortAttempts = 3;
+constexpr const char* kPortTaken = "Address already in use";  ///< ZeroMQ's EADDRINUSE message
 
 /// One robot process.
 struct Child {
@@ -63,13 +68,28 @@ bool PortsFree(int base) {
     return true;
 }
 
-/// Base ports for `robots` robots, each with 7 free ports, from a start spread by the pid.
+/// The first port of the kernel's ephemeral range (outgoing connections take ports from it, so
+/// a listener there can lose its port between the check and the bind).
+int EphemeralLow() {
+    std::ifstream in("/proc/sys/net/ipv4/ip_local_port_range");
+    int low = 0;
+    return in >> low && low > kFirstPort ? low : kDefaultEphemeralLow;
+}
+
+/// Base ports for `robots` robots, each with 7 free ports below the ephemeral range, from a start
+/// spread by the pid (concurrent solves start apart).
 std::vector<int> FreeBasePorts(int robots) {
+    const int stride = kEdgePorts + 1;
+    const int slots = (EphemeralLow() - kFirstPort) / stride;
+    if (slots < robots) throw std::runtime_error("no free tcp ports on 127.0.0.1");
     std::vector<int> bases;
-    for (int base = 20000 + static_cast<int>(::getpid() % 2000) * 16;
-         static_cast<int>(bases.size()) < robots; base += kEdgePorts + 1) {
-        if (base + kEdgePorts > 65535) throw std::runtime_error("no free tcp ports on 127.0.0.1");
+    const int first = static_cast<int>(::getpid() % slots);
+    for (int i = 0; i < slots && static_cast<int>(bases.size()) < robots; ++i) {
+        const int base = kFirstPort + ((first + i) % slots) * stride;
         if (PortsFree(base)) bases.push_back(base);
+    }
+    if (static_cast<int>(bases.size()) < robots) {
+        throw std::runtime_error("no free tcp ports on 127.0.0.1");
     }
     return bases;
 }
@@ -129,34 +149,51 @@ pid_t Spawn(const std::vector<std::string>& args, const std::string& out, const 
     return pid;
 }
 
-/// Waits for every child (peak RSS from wait4); kills those still running at `deadline`.
-void WaitAll(std::vector<Child>* children, Clock::time_point deadline) {
+/// True when a robot's exit ends the team: anything but done or not certified (a bad input, a
+/// port taken, a crash).
+bool Failed(int status) {
+    const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return code != kExitDone && code != kExitNotCertified;
+}
+
+/// Waits for every child (peak RSS from wait4). The first child that fails stops the others (they
+/// would wait for it until their timeout), and so does `deadline`. Returns the index of the first
+/// that failed, or -1.
+int WaitAll(std::vector<Child>* children, Clock::time_point deadline) {
     size_t running = children->size();
     bool killed = false;
+    int failed = -1;
+    const auto kill_running = [&] {
+        for (const auto& c : *children) {
+            if (!c.exited) ::kill(c.pid, SIGKILL);
+        }
+        killed = true;
+    };
     while (running > 0) {
         int status = 0;
         rusage usage{};
         const pid_t pid = ::wait4(-1, &status, WNOHANG, &usage);
         if (pid > 0) {
-            for (auto& c : *children) {
+            for (size_t k = 0; k < children->size(); ++k) {
+                Child& c = (*children)[k];
                 if (c.pid != pid) continue;
                 c.exited = true;
                 c.status = status;
                 c.peak_rss_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;  // KiB
                 --running;
+                if (!killed && Failed(status)) {
+                    failed = static_cast<int>(k);
+                    kill_running();
+                }
             }
         } else if (pid < 0 && errno == ECHILD) {
             break;
         } else {
-            if (!killed && Clock::now() > deadline) {
-                for (const auto& c : *children) {
-                    if (!c.exited) ::kill(c.pid, SIGKILL);
-                }
-                killed = true;
-            }
+            if (!killed && Clock::now() > deadline) kill_running();
             std::this_thread::sleep_for(std::chrono::milliseconds(20));
         }
     }
+    return failed;
 }
 
 /// The command of one robot process: `certislam-robot` beside this executable (the lean one: no
@@ -244,18 +281,24 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
     return r;
 }
 
-int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partition,
-                    const DistributedSolveOptions& o) {
-    char templ[] = "/tmp/certislam-solve-XXXXXX";  // 0700: the ipc sockets' guard
-    if (::mkdtemp(templ) == nullptr) throw std::runtime_error("cannot create a folder in /tmp");
-    const fs::path dir = templ;
+namespace {
+
+/// One team of robot processes on the configuration written to `dir` (new tcp ports each time).
+struct TeamRun {
+    std::vector<Child> children;
+    int failed = -1;  ///< the first robot that failed (WaitAll), or -1
+    double wall = 0.0;
+};
+
+TeamRun RunTeam(const slam::Partition& partition, const DistributedSolveOptions& o,
+                const fs::path& dir, const std::vector<std::string>& robot_command) {
     const std::string config = (dir / "team.json").string();
     std::ofstream(config) << TeamConfigOf(o, partition, dir).dump(2) << "\n";
-    const std::vector<std::string> robot_command = RobotCommand();
     const auto start = Clock::now();
-    std::vector<Child> children(static_cast<size_t>(partition.num_robots()));
+    TeamRun run;
+    run.children.resize(static_cast<size_t>(partition.num_robots()));
     for (int k = 0; k < partition.num_robots(); ++k) {
-        Child& c = children[static_cast<size_t>(k)];
+        Child& c = run.children[static_cast<size_t>(k)];
         c.robot = k;
         c.out = (dir / ("robot" + std::to_string(k) + ".json")).string();
         c.log = (dir / ("robot" + std::to_string(k) + ".log")).string();
@@ -264,16 +307,39 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
                                  std::to_string(o.timeout_s)});
         c.pid = Spawn(args, c.out, c.log);
     }
-    WaitAll(&children, start + std::chrono::duration_cast<Clock::duration>(
-                                   std::chrono::duration<double>(o.timeout_s + kGraceSeconds)));
-    const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+    run.failed = WaitAll(&run.children,
+                         start + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>(o.timeout_s + kGraceSeconds)));
+    run.wall = std::chrono::duration<double>(Clock::now() - start).count();
+    return run;
+}
+
+}  // namespace
+
+int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partition,
+                    const DistributedSolveOptions& o) {
+    char templ[] = "/tmp/certislam-solve-XXXXXX";  // 0700: the ipc sockets' guard
+    if (::mkdtemp(templ) == nullptr) throw std::runtime_error("cannot create a folder in /tmp");
+    const fs::path dir = templ;
+    const std::vector<std::string> robot_command = RobotCommand();
+    TeamRun run;
+    for (int attempt = 1;; ++attempt) {
+        run = RunTeam(partition, o, dir, robot_command);
+        // Another process bound a port between FreeBasePorts' check and the robot's bind.
+        const bool port_taken =
+            run.failed >= 0 && o.transport == "tcp" &&
+            Slurp(run.children[static_cast<size_t>(run.failed)].log).find(kPortTaken) !=
+                std::string::npos;
+        if (!port_taken || attempt == kPortAttempts) break;
+    }
     std::vector<nlohmann::json> reports;
     nlohmann::json rss = nlohmann::json::object();
     double peak = 0.0;
-    for (const auto& c : children) {
+    for (size_t k = 0; k < run.children.size(); ++k) {
+        const Child& c = run.children[run.failed >= 0 ? static_cast<size_t>(run.failed) : k];
         const int code = WIFEXITED(c.status) ? WEXITSTATUS(c.status) : -1;
         auto j = nlohmann::json::parse(Slurp(c.out), nullptr, false);
-        if ((code != kExitDone && code != kExitNotCertified) || j.is_discarded()) {
+        if (run.failed >= 0 || code < 0 || j.is_discarded()) {
             std::fprintf(stderr, "certislam solve: error: %s: robot %d (%s) %s: %s\n",
                          o.file.c_str(), c.robot, o.transport.c_str(),
                          code < 0 ? "was killed" : ("exited " + std::to_string(code)).c_str(),
@@ -291,7 +357,7 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
     j["eigensolver"] = o.eigensolver;
     j["peak_rss_mb"] = peak;  // the largest robot process
     j["peak_rss_mb_by_robot"] = rss;
-    j["wall_seconds"] = wall;
+    j["wall_seconds"] = run.wall;
     j["robot_executable"] =
         fs::path(robot_command.front())
             .filename()

@@ -78,11 +78,12 @@ void Print(const std::vector<Row>& rows, bool json) {
 /// The point S is built at: the solved optimum (rounded poses, rank d), the chordal start, or
 /// the last iterate of the robots' synchronous rounds (what `solve --distributed` certifies).
 Eigen::MatrixXd PointOf(const slam::PoseGraph& graph, const std::string& point,
-                        const slam::Partition& partition, const certify::TeamRoundsConfig& rounds) {
+                        const slam::Partition& partition, const certify::TeamRoundsConfig& rounds,
+                        const certify::SolverConfig& solver) {
     if (point == "chordal") return slam::LiftToRank(slam::ChordalInitialization(graph), 5);
     if (point == "rounds") {
         const certify::InMemoryTeam team = certify::RunTeamRoundsInMemory(
-            slam::SplitGraph(graph, partition), certify::SolverConfig{}, rounds);
+            slam::SplitGraph(graph, partition), solver, rounds);
         if (!team.AllConverged()) {
             throw std::runtime_error("the rounds did not converge in " +
                                      std::to_string(rounds.max_rounds) + " rounds");
@@ -152,6 +153,13 @@ int RunEigenBench(int argc, char** argv) {
                    "--point rounds: the rounds' relative gradient tolerance");
     app.add_option("--max-rounds", rounds.max_rounds, "--point rounds: rounds before giving up")
         ->check(CLI::PositiveNumber);
+    certify::SolverConfig solver;
+    app.add_option("--block-steps", solver.rbcd.block_max_rtr_iterations,
+                   "--point rounds: trust-region steps per block update at most")
+        ->check(CLI::PositiveNumber);
+    app.add_option("--block-reduction", solver.rbcd.block_grad_reduction,
+                   "--point rounds: a block update stops when its gradient fell by this factor")
+        ->check(CLI::Range(1e-12, 0.999));
     app.add_option("--block", lobpcg.block_size, "LOBPCG block size")->check(CLI::Range(1, 16));
     app.add_option("--drop", lobpcg.drop_tolerance, "LOBPCG Gram drop tolerance");
     app.add_option("--shift", lobpcg.shift_relative, "LOBPCG preconditioner shift (relative)");
@@ -165,7 +173,7 @@ int RunEigenBench(int argc, char** argv) {
         if (!read.ok()) throw std::runtime_error(read.error);
         const slam::PoseGraph graph = slam::LiftPlanar(read.graph);  // the robots solve in 3D
         const slam::Partition partition = slam::ContiguousPartition(graph.n, robots);
-        const Eigen::MatrixXd X = PointOf(graph, point, partition, rounds);
+        const Eigen::MatrixXd X = PointOf(graph, point, partition, rounds, solver);
         const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(graph);
         const Eigen::SparseMatrix<double> S =
             certify::CertificateMatrix(Q, certify::LambdaBlocks(Q, X, graph.d), graph.d);

@@ -82,8 +82,8 @@ Eigen::MatrixXd PointOf(const slam::PoseGraph& graph, const std::string& point,
                         const certify::SolverConfig& solver) {
     if (point == "chordal") return slam::LiftToRank(slam::ChordalInitialization(graph), 5);
     if (point == "rounds") {
-        const certify::InMemoryTeam team = certify::RunTeamRoundsInMemory(
-            slam::SplitGraph(graph, partition), solver, rounds);
+        const certify::InMemoryTeam team =
+            certify::RunTeamRoundsInMemory(slam::SplitGraph(graph, partition), solver, rounds);
         if (!team.AllConverged()) {
             throw std::runtime_error("the rounds did not converge in " +
                                      std::to_string(rounds.max_rounds) + " rounds");

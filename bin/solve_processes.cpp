@@ -17,6 +17,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -24,6 +25,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "bin/command.h"
 #include "slam/core/graph_split.h"
@@ -37,7 +39,11 @@ using Clock = std::chrono::steady_clock;
 constexpr double kGraceSeconds = 30.0;  ///< past --timeout before the robots are killed
 constexpr int kEdgePorts = 7;           ///< tcp ports per robot: base_port + 1 .. + 7
 constexpr int kFirstPort = 20000;       ///< robots' tcp ports from here up to the ephemeral range
-constexpr int kDefaultEphemeralLow = 32768;  ///< Linux's default when /proc does not say
+constexpr int kDefaultEphemeralLow = 32768;  ///< Linux's defaults when /proc does not say
+constexpr int kDefaultEphemeralHigh = 60999;
+constexpr int kMinPorts = 1000;       ///< below the ephemeral range only when this many fit there
+constexpr long long kPidSpread = 97;  ///< slots between the starts of consecutive pids
+constexpr int kRetrySpread = 331;     ///< slots between the starts of a solve's attempts
 /// Teams started at most, for tcp: another process may bind a checked port before a robot does.
 constexpr int kPortAttempts = 3;
 constexpr const char* kPortTaken = "Address already in use";  ///< ZeroMQ's EADDRINUSE message
@@ -68,24 +74,31 @@ bool PortsFree(int base) {
     return true;
 }
 
-/// The first port of the kernel's ephemeral range (outgoing connections take ports from it, so
-/// a listener there can lose its port between the check and the bind).
-int EphemeralLow() {
+/// The robots' ports, [first, end): from kFirstPort up to the kernel's ephemeral range, else
+/// above it (outgoing connections take ports from that range, so a listener there can lose its
+/// port between the check and the bind).
+std::pair<int, int> PortRange() {
     std::ifstream in("/proc/sys/net/ipv4/ip_local_port_range");
-    int low = 0;
-    return in >> low && low > kFirstPort ? low : kDefaultEphemeralLow;
+    int low = kDefaultEphemeralLow, high = kDefaultEphemeralHigh;
+    if (!(in >> low >> high)) {
+        low = kDefaultEphemeralLow;
+        high = kDefaultEphemeralHigh;
+    }
+    return low >= kFirstPort + kMinPorts ? std::pair{kFirstPort, low} : std::pair{high + 1, 65536};
 }
 
-/// Base ports for `robots` robots, each with 7 free ports below the ephemeral range, from a start
-/// spread by the pid (concurrent solves start apart).
-std::vector<int> FreeBasePorts(int robots) {
+/// Base ports for `robots` robots, each with 7 free ports, from a start spread by the pid and the
+/// attempt (concurrent solves and retries start apart).
+std::vector<int> FreeBasePorts(int robots, int attempt) {
     const int stride = kEdgePorts + 1;
-    const int slots = (EphemeralLow() - kFirstPort) / stride;
+    const auto [first_port, end_port] = PortRange();
+    const int slots = std::max(0, (end_port - first_port) / stride);
     if (slots < robots) throw std::runtime_error("no free tcp ports on 127.0.0.1");
     std::vector<int> bases;
-    const int first = static_cast<int>(::getpid() % slots);
+    const auto start = (static_cast<long long>(::getpid()) * kPidSpread + attempt * kRetrySpread);
+    const int first = static_cast<int>(start % slots);
     for (int i = 0; i < slots && static_cast<int>(bases.size()) < robots; ++i) {
-        const int base = kFirstPort + ((first + i) % slots) * stride;
+        const int base = first_port + ((first + i) % slots) * stride;
         if (PortsFree(base)) bases.push_back(base);
     }
     if (static_cast<int>(bases.size()) < robots) {
@@ -97,7 +110,7 @@ std::vector<int> FreeBasePorts(int robots) {
 /// The team configuration (JSON, which YAML reads) of the split: a pose-graph source with the
 /// partition's vertex ranges, this solve's threshold and quiet time.
 nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partition& partition,
-                            const fs::path& dir) {
+                            const fs::path& dir, int attempt) {
     nlohmann::json config;
     const int robots = partition.num_robots();
     for (int k = 0; k < robots; ++k) config["robots"].push_back(k);
@@ -110,7 +123,7 @@ nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partit
                                                          {"end", partition.begin[k + 1]}};
     }
     const std::vector<int> ports =
-        o.transport == "tcp" ? FreeBasePorts(robots) : std::vector<int>{};
+        o.transport == "tcp" ? FreeBasePorts(robots, attempt) : std::vector<int>{};
     for (int k = 0; k < robots; ++k) {
         config["network"][std::to_string(k)] =
             o.transport == "tcp" ? nlohmann::json{{"host", "127.0.0.1"}, {"base_port", ports[k]}}
@@ -291,9 +304,9 @@ struct TeamRun {
 };
 
 TeamRun RunTeam(const slam::Partition& partition, const DistributedSolveOptions& o,
-                const fs::path& dir, const std::vector<std::string>& robot_command) {
+                const fs::path& dir, const std::vector<std::string>& robot_command, int attempt) {
     const std::string config = (dir / "team.json").string();
-    std::ofstream(config) << TeamConfigOf(o, partition, dir).dump(2) << "\n";
+    std::ofstream(config) << TeamConfigOf(o, partition, dir, attempt).dump(2) << "\n";
     const auto start = Clock::now();
     TeamRun run;
     run.children.resize(static_cast<size_t>(partition.num_robots()));
@@ -324,7 +337,7 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
     const std::vector<std::string> robot_command = RobotCommand();
     TeamRun run;
     for (int attempt = 1;; ++attempt) {
-        run = RunTeam(partition, o, dir, robot_command);
+        run = RunTeam(partition, o, dir, robot_command, attempt);
         // Another process bound a port between FreeBasePorts' check and the robot's bind.
         const bool port_taken =
             run.failed >= 0 && o.transport == "tcp" &&
@@ -339,10 +352,13 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
         const Child& c = run.children[run.failed >= 0 ? static_cast<size_t>(run.failed) : k];
         const int code = WIFEXITED(c.status) ? WEXITSTATUS(c.status) : -1;
         auto j = nlohmann::json::parse(Slurp(c.out), nullptr, false);
-        if (run.failed >= 0 || code < 0 || j.is_discarded()) {
+        if (run.failed >= 0 || Failed(c.status) || j.is_discarded()) {
+            const std::string how =
+                WIFSIGNALED(c.status)
+                    ? std::string("was killed (") + ::strsignal(WTERMSIG(c.status)) + ")"
+                    : "exited " + std::to_string(code);
             std::fprintf(stderr, "certislam solve: error: %s: robot %d (%s) %s: %s\n",
-                         o.file.c_str(), c.robot, o.transport.c_str(),
-                         code < 0 ? "was killed" : ("exited " + std::to_string(code)).c_str(),
+                         o.file.c_str(), c.robot, o.transport.c_str(), how.c_str(),
                          LastLine(Slurp(c.log)).c_str());
             fs::remove_all(dir);
             return code == kExitBadInput ? kExitBadInput : kExitNotCertified;

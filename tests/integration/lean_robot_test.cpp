@@ -55,8 +55,8 @@ TEST(LeanRobot, TwoProcessesOverTcpCertifyAndWriteTheirReports) {
                                             "  graph: " +
                                                 G2oPath("smallGrid3D.g2o") +
                                                 "\nnetwork:\n"
-                                                "  0: {host: 127.0.0.1, base_port: 27910}\n"
-                                                "  1: {host: 127.0.0.1, base_port: 27920}\n");
+                                                "  0: {host: 127.0.0.1, base_port: 17910}\n"
+                                                "  1: {host: 127.0.0.1, base_port: 17920}\n");
     const std::string robot =
         std::string(CERTISLAM_ROBOT_BINARY) + " " + config + " --timeout 120 --out " + out.string();
     const ShellResult r =
@@ -91,8 +91,8 @@ TEST(LeanRobot, GivesTheRobotCommandsErrorsAndRefusesKeyframeSources) {
     const std::string keyframes =
         WriteScratch("sim.yaml",
                      "robots: [0, 1]\nsource: {kind: simulator}\nnetwork:\n"
-                     "  0: {host: 127.0.0.1, base_port: 27930}\n  1: {host: 127.0.0.1, "
-                     "base_port: 27940}\n");
+                     "  0: {host: 127.0.0.1, base_port: 17930}\n  1: {host: 127.0.0.1, "
+                     "base_port: 17940}\n");
     const ShellResult refused =
         Shell(std::string(CERTISLAM_ROBOT_BINARY) + " " + keyframes + " --id 0 2>&1");
     EXPECT_EQ(refused.exit_code, 1) << refused.out;

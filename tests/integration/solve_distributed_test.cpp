@@ -160,8 +160,8 @@ TEST(RobotPoseGraph, TwoProcessesOverTcpCertifyTheInProcessOptimum) {
                                             "  graph: " +
                                                 G2oPath("smallGrid3D.g2o") +
                                                 "\nnetwork:\n"
-                                                "  0: {host: 127.0.0.1, base_port: 27710}\n"
-                                                "  1: {host: 127.0.0.1, base_port: 27810}\n");
+                                                "  0: {host: 127.0.0.1, base_port: 17710}\n"
+                                                "  1: {host: 127.0.0.1, base_port: 17810}\n");
     const std::string robot = std::string(CERTISLAM_BINARY) + " robot " + config;
     const std::string out1 = WriteScratch("robot1.json", "");
     const ShellResult r0 = Shell(robot + " --id 1 --json --timeout 120 > " + out1 + " 2>&1 & " +

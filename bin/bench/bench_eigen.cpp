@@ -153,6 +153,9 @@ int RunEigenBench(int argc, char** argv) {
                    "--point rounds: the rounds' relative gradient tolerance");
     app.add_option("--max-rounds", rounds.max_rounds, "--point rounds: rounds before giving up")
         ->check(CLI::PositiveNumber);
+    app.add_option("--overlap", rounds.overlap_depth,
+                   "--point rounds: overlapping sweeps' depth in edges (0: none)")
+        ->check(CLI::Range(0, 16));
     certify::SolverConfig solver;
     app.add_option("--block-steps", solver.rbcd.block_max_rtr_iterations,
                    "--point rounds: trust-region steps per block update at most")

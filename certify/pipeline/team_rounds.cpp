@@ -14,6 +14,7 @@ namespace certislam::certify {
 namespace {
 
 constexpr int kDimension = 3;
+constexpr int kBlock = kDimension + 1;  // columns per lifted pose
 // A rise of f below this relative size is the rounding noise of the robots' summed shares near
 // the optimum, not an overshoot: it does not restart the extrapolation.
 constexpr double kCostNoise = 1e-14;
@@ -36,13 +37,14 @@ TeamRounds::TeamRounds(int robot, std::vector<int> robots, std::set<int> neighbo
         !(config_.local_tol_factor > 0.0 && config_.local_tol_factor <= 1.0) ||
         !(config_.refine_rel_grad_tol > 0.0 &&
           config_.refine_rel_grad_tol <= config_.rel_grad_tol) ||
-        config_.refine_rounds < 0) {
+        config_.refine_rounds < 0 || config_.overlap_depth < 0 || config_.overlap_depth > 16) {
         throw std::invalid_argument(
             "TeamRoundsConfig: rel_grad_tol = " + std::to_string(config_.rel_grad_tol) +
             " must be > 0, refine_rel_grad_tol = " + std::to_string(config_.refine_rel_grad_tol) +
             " in (0, rel_grad_tol], refine_rounds = " + std::to_string(config_.refine_rounds) +
             " >= 0, local_tol_factor = " + std::to_string(config_.local_tol_factor) +
-            " in (0, 1], max_rounds = " + std::to_string(config_.max_rounds) + " >= 1");
+            " in (0, 1], max_rounds = " + std::to_string(config_.max_rounds) +
+            " >= 1, overlap_depth = " + std::to_string(config_.overlap_depth) + " in [0, 16]");
     }
 }
 
@@ -107,16 +109,50 @@ PoseBlocks TeamRounds::NeighbourPoses(std::uint64_t round, bool extrapolate_high
             p = &by_round.at(round);
             blocks = p->blocks;
         }
-        out.ids.insert(out.ids.end(), p->ids.begin(), p->ids.end());
+        // The sender's own poses only: its proposals for other robots' poses (an overlapping
+        // sweep) are for those robots, which start from them (ApplyProposals).
+        Eigen::MatrixXd mine(blocks.rows(), blocks.cols());
+        Eigen::Index kept = 0;
+        for (size_t k = 0; k < p->ids.size(); ++k) {
+            if (p->ids[k].robot != j) continue;
+            out.ids.push_back(p->ids[k]);
+            mine.middleCols(kept, kBlock) = blocks.middleCols(kBlock * Eigen::Index(k), kBlock);
+            kept += kBlock;
+        }
         rows = blocks.rows();
-        cols += blocks.cols();
-        parts.push_back(std::move(blocks));
+        cols += kept;
+        parts.push_back(mine.leftCols(kept));
     }
     out.blocks.resize(rows, cols);
     Eigen::Index c = 0;
     for (const auto& part : parts) {
         out.blocks.middleCols(c, part.cols()) = part;
         c += part.cols();
+    }
+    return out;
+}
+
+void TeamRounds::ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start) const {
+    for (int j : neighbours_) {
+        if (!Earlier(j, round)) continue;
+        const auto& p = nbr_.at(j).at(round);  // HaveNeighbours: an earlier one's poses are in
+        for (size_t k = 0; k < p.ids.size(); ++k) {
+            const slam::PoseId& id = p.ids[k];
+            if (id.robot != robot_ || id.index < 0 ||
+                kBlock * Eigen::Index(id.index + 1) > own_start->cols() ||
+                p.blocks.rows() != own_start->rows()) {
+                continue;
+            }
+            own_start->middleCols(kBlock * Eigen::Index(id.index), kBlock) =
+                p.blocks.middleCols(kBlock * Eigen::Index(k), kBlock);
+        }
+    }
+}
+
+std::set<int> TeamRounds::LaterNeighbours() const {
+    std::set<int> out;
+    for (int j : neighbours_) {
+        if (!Earlier(j, 1)) out.insert(j);
     }
     return out;
 }
@@ -150,6 +186,7 @@ RoundAction TeamRounds::Next() {
         a.kind = RoundAction::Kind::kSweep;
         const auto prev = own_.find(accepted_prev_);
         a.own_start = Extrapolate(own_.at(accepted_), prev->second, beta_);
+        ApplyProposals(current_, &a.own_start);
         a.neighbours = NeighbourPoses(current_, true);
         // MATH.md: the local tolerance must be tighter than the global one.
         a.block_tol = config_.local_tol_factor * TeamTolerance() * std::max(1.0, accepted_cost_);

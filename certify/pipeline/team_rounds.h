@@ -35,6 +35,10 @@ struct TeamRoundsConfig {
     int refine_rounds = 40;
     double local_tol_factor = 0.1;  ///< a block update stops at this * the team tolerance, (0, 1]
     int max_rounds = 1000;  ///< rounds before giving up (the caller goes asynchronous), >= 1
+    /// Overlapping sweeps (OverlapSweep): a robot's block update also moves the poses of
+    /// later-sweeping neighbours within this many edges of its own, and they go on from there.
+    /// 0: each robot its own poses (RBCD). In [0, 16].
+    int overlap_depth = 0;
 };
 
 /// What the robot should do next.
@@ -81,12 +85,18 @@ class TeamRounds {
     /// no edge and sweep together; a colour sweeps after every lower one. The round-0 poses
     /// carry it (PoseBlocks::sweep_color) to the neighbours.
     int SweepColor() const { return color_; }
+    /// Neighbours that sweep after this robot in every round from 1 on (known once placed): the
+    /// robots whose poses an overlapping sweep may propose (OverlapSweep).
+    std::set<int> LaterNeighbours() const;
 
   private:
     /// True when neighbour j sweeps `round` before this robot: round 0 in id order, later rounds
     /// in colour order.
     bool Earlier(int j, std::uint64_t round) const;
     bool HaveNeighbours(std::uint64_t round, bool lower_only) const;
+    /// Own poses that an earlier neighbour's overlapping sweep of `round` proposed replace those
+    /// of the start (multiplicative Schwarz: the sweep goes on from them).
+    void ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start) const;
     PoseBlocks NeighbourPoses(std::uint64_t round, bool extrapolate_higher) const;
     void Decide();
     void Prune();

@@ -2,10 +2,50 @@
 // every robot's poses and sums handed to every other robot at once.
 #include "certify/pipeline/team_rounds_in_memory.h"
 
+#include "certify/pipeline/overlap_sweep.h"
+
 #include <algorithm>
+#include <optional>
 #include <utility>
 
 namespace certislam::certify {
+namespace {
+
+/// Robot `me`'s placement (round 0) or sweep (overlapping when `depth` > 0 and its domain is not
+/// empty), reported to `rounds`; returns the poses it sends.
+PoseBlocks SweepOrPlace(const RoundAction& a, const std::vector<slam::LoopClosure>& edges,
+                        const slam::RbcdConfig& rbcd, int depth, TeamRounds* rounds,
+                        SolverState* me, std::optional<OverlapSweep>* overlapping) {
+    if (a.kind == RoundAction::Kind::kAlign) {
+        me->AlignToLowerNeighbour();
+    } else {
+        me->SetOwnBlock(a.own_start);
+        if (depth > 0 && !*overlapping) {  // from round 1: the colours are known
+            overlapping->emplace(
+                me->robot(), me->NumPoses(), me->Rank(), edges,
+                OverlapDomain(me->robot(), edges, depth, rounds->LaterNeighbours()), rbcd);
+        }
+        if (*overlapping && (*overlapping)->OverlapSize() > 0) {
+            me->SetOwnBlock((*overlapping)->Sweep(a.own_start, me->NeighbourBlocks(), a.block_tol));
+        } else {
+            me->StepTo(a.block_tol);
+        }
+    }
+    rounds->SweepDone(a.round, me->FullBlock(0).blocks);
+    // Overlapping sweeps read the neighbours' poses beyond their public ones (in one process the
+    // whole block goes) and send their proposals.
+    PoseBlocks poses = depth > 0 ? me->FullBlock(0) : me->PublicPoses(0);
+    if (a.kind == RoundAction::Kind::kSweep && *overlapping && (*overlapping)->OverlapSize() > 0) {
+        const PoseBlocks& p = (*overlapping)->Proposals();
+        poses.ids.insert(poses.ids.end(), p.ids.begin(), p.ids.end());
+        Eigen::MatrixXd both(poses.blocks.rows(), poses.blocks.cols() + p.blocks.cols());
+        both << poses.blocks, p.blocks;
+        poses.blocks = std::move(both);
+    }
+    return poses;
+}
+
+}  // namespace
 
 InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, SolverConfig solver,
                                    const TeamRoundsConfig& rounds) {
@@ -15,11 +55,17 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
     for (const auto& g : graphs) ids.push_back(g.robot);
     InMemoryTeam team;
     std::vector<TeamRounds> schedule;
+    std::vector<slam::LoopClosure> edges;  // every edge once: the overlapping sweeps' domains
+    for (const auto& g : graphs) {
+        for (const auto* part : {&g.intra, &g.inter})
+            edges.insert(edges.end(), part->begin(), part->end());
+    }
+    std::vector<std::optional<OverlapSweep>> overlapping(graphs.size());
     for (const auto& g : graphs) {
         SolverState state(g.robot, solver);
         for (size_t k = 0; k < g.initial.size(); ++k) state.AddKeyframe(int(k), g.initial[k]);
-        for (const auto* edges : {&g.intra, &g.inter, &g.shared}) {
-            for (const auto& e : *edges) state.AddLoop(e);
+        for (const auto* part : {&g.intra, &g.inter, &g.shared}) {
+            for (const auto& e : *part) state.AddLoop(e);
         }
         state.LocalChordalStart();
         const auto nbrs = state.Neighbours();
@@ -48,14 +94,8 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
                     for (auto& peer : schedule)
                         peer.OnSums(me.robot(), a.round, e.cost, e.grad_norm);
                 } else {
-                    if (a.kind == K::kAlign) {
-                        me.AlignToLowerNeighbour();
-                    } else {
-                        me.SetOwnBlock(a.own_start);
-                        me.StepTo(a.block_tol);
-                    }
-                    schedule[i].SweepDone(a.round, me.FullBlock(0).blocks);
-                    PoseBlocks poses = me.PublicPoses(0);
+                    PoseBlocks poses = SweepOrPlace(a, edges, solver.rbcd, rounds.overlap_depth,
+                                                    &schedule[i], &me, &overlapping[i]);
                     poses.sweep_color = schedule[i].SweepColor();
                     for (auto& peer : schedule) peer.OnPoses(me.robot(), a.round, poses);
                 }

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -210,6 +211,53 @@ TEST(TeamRounds, ColoursFollowIdsOnAChainNumberedOutOfOrder) {
     EXPECT_EQ(t[3].Next().kind, K::kWait);
     t.Sweep(2, 1);
     EXPECT_EQ(t[3].Next().kind, K::kSweep);
+}
+
+// An overlapping sweep of robot 0 proposes a pose of robot 1, which sweeps after it: robot 1's
+// round starts from the proposal, and the proposal is not among the neighbours' poses it reads.
+TEST(TeamRounds, ALaterRobotStartsFromTheProposalOfAnEarlierOne) {
+    HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
+    t.Place();
+    t.Sweep(2, 1);
+    t[0].SweepDone(1, HandTeam::Block(0, 1));
+    PoseBlocks poses;
+    poses.ids = {{0, 0}, {1, 0}};
+    poses.blocks.resize(5, 8);
+    poses.blocks << HandTeam::Block(0, 1), Eigen::MatrixXd::Constant(5, 4, 7.0);
+    t[1].OnPoses(0, 1, poses);
+    const RoundAction middle = t[1].Next();
+    ASSERT_EQ(middle.kind, RoundAction::Kind::kSweep);
+    EXPECT_EQ(middle.own_start, Eigen::MatrixXd::Constant(5, 4, 7.0));
+    const std::vector<slam::PoseId> read{{0, 0}, {2, 0}};
+    EXPECT_EQ(middle.neighbours.ids, read);
+    Eigen::MatrixXd both(5, 8);
+    both << HandTeam::Block(0, 1), HandTeam::Block(2, 1);
+    EXPECT_EQ(middle.neighbours.blocks, both);
+}
+
+// Two robots on smallGrid3D: overlapping sweeps of depth 4 reach the same optimum in far fewer
+// rounds than each robot sweeping its own poses.
+TEST(TeamRounds, OverlappingSweepsReachTheOptimumInFewerRounds) {
+    TeamRoundsConfig overlapping;
+    overlapping.overlap_depth = 4;
+    InMemoryTeam plain = RunTeamRoundsInMemory(SmallGrid(2), SolverConfig{}, TeamRoundsConfig{});
+    InMemoryTeam fast = RunTeamRoundsInMemory(SmallGrid(2), SolverConfig{}, overlapping);
+    ASSERT_TRUE(plain.AllConverged());
+    ASSERT_TRUE(fast.AllConverged());
+    EXPECT_EQ(fast.rounds[0], fast.rounds[1]);
+    EXPECT_LE(2 * fast.rounds[0], plain.rounds[0]);
+    EXPECT_NEAR(Cost(&fast), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
+}
+
+TEST(TeamRounds, OverlapDepthOutOfRangeIsNamed) {
+    TeamRoundsConfig config;
+    config.overlap_depth = 17;
+    try {
+        TeamRounds rounds(0, {0, 1}, {1}, config);
+        FAIL() << "no throw";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("overlap_depth = 17"), std::string::npos) << e.what();
+    }
 }
 
 }  // namespace

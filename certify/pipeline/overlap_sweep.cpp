@@ -1,0 +1,149 @@
+// Overlapping block update: one RbcdAgent on [own | overlap] against the fixed poses beyond.
+#include "certify/pipeline/overlap_sweep.h"
+
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+namespace certislam::certify {
+namespace {
+
+constexpr int kBlock = 4;  // d + 1 columns per pose (d = 3)
+
+using Adjacency = std::map<slam::PoseId, std::vector<slam::PoseId>>;
+
+/// Poses within `depth` edges of `sources`, walking only through poses `pass` accepts.
+template <typename Pass>
+std::set<slam::PoseId> Reach(const Adjacency& adjacent, const std::set<slam::PoseId>& sources,
+                             int depth, Pass pass) {
+    std::set<slam::PoseId> out, frontier = sources;
+    for (int step = 0; step < depth && !frontier.empty(); ++step) {
+        std::set<slam::PoseId> grown;
+        for (const auto& id : frontier) {
+            const auto it = adjacent.find(id);
+            if (it == adjacent.end()) continue;
+            for (const auto& j : it->second) {
+                if (pass(j) && out.insert(j).second) grown.insert(j);
+            }
+        }
+        frontier = std::move(grown);
+    }
+    return out;
+}
+
+}  // namespace
+
+struct OverlapSweep::Impl {
+    int n_own = 0;
+    std::vector<slam::PoseId> overlap;  ///< domain's other poses, local n_own + k
+    std::vector<slam::PoseId> fixed;    ///< beyond the domain, local n_own + |overlap| + k
+    std::optional<slam::RbcdAgent> agent;
+    PoseBlocks proposals;
+};
+
+OverlapSweep::OverlapSweep(int robot, int n_own, int rank,
+                           const std::vector<slam::LoopClosure>& edges,
+                           const std::set<slam::PoseId>& overlap, const slam::RbcdConfig& config)
+    : impl_(std::make_unique<Impl>()) {
+    Impl& m = *impl_;
+    m.n_own = n_own;
+    m.overlap.assign(overlap.begin(), overlap.end());
+    std::map<slam::PoseId, int> local;
+    for (int k = 0; k < n_own; ++k) local[{robot, k}] = k;
+    for (const auto& id : m.overlap) local.emplace(id, static_cast<int>(local.size()));
+    std::vector<const slam::LoopClosure*> domain_edges;
+    std::set<slam::PoseId> beyond;
+    for (const auto& e : edges) {
+        if (!local.count(e.a) && !local.count(e.b)) continue;
+        domain_edges.push_back(&e);
+        for (const auto& id : {e.a, e.b}) {
+            if (!local.count(id)) beyond.insert(id);
+        }
+    }
+    m.fixed.assign(beyond.begin(), beyond.end());
+    for (const auto& id : m.fixed) local.emplace(id, static_cast<int>(local.size()));
+    slam::PoseGraph graph;
+    graph.d = 3;
+    graph.n = static_cast<int>(local.size());
+    graph.ids.resize(local.size());
+    for (const auto& [id, k] : local) graph.ids[k] = id;
+    for (const auto* e : domain_edges) {
+        graph.edges.push_back(slam::MeasurementOf(*e, local.at(e->a), local.at(e->b)));
+    }
+    const int free = n_own + static_cast<int>(m.overlap.size());
+    slam::Partition partition{{0, free}};
+    if (graph.n > free) partition.begin.push_back(graph.n);
+    m.agent.emplace(graph, partition, 0, rank, config);
+}
+OverlapSweep::~OverlapSweep() = default;
+OverlapSweep::OverlapSweep(OverlapSweep&&) noexcept = default;
+OverlapSweep& OverlapSweep::operator=(OverlapSweep&&) noexcept = default;
+
+Eigen::MatrixXd OverlapSweep::Sweep(const Eigen::MatrixXd& X_own, const PoseBlocks& others,
+                                    double grad_tol) {
+    Impl& m = *impl_;
+    std::map<slam::PoseId, Eigen::Index> at;
+    for (size_t k = 0; k < others.ids.size(); ++k) at[others.ids[k]] = Eigen::Index(k);
+    const auto pose = [&](const slam::PoseId& id) -> Eigen::MatrixXd {
+        const auto it = at.find(id);
+        if (it == at.end() || others.blocks.rows() < X_own.rows()) {
+            throw std::invalid_argument("OverlapSweep: pose " + std::to_string(id.robot) + "/" +
+                                        std::to_string(id.index) + " of the domain is not known");
+        }
+        return others.blocks.middleCols(kBlock * it->second, kBlock).topRows(X_own.rows());
+    };
+    const Eigen::Index own_cols = X_own.cols();
+    Eigen::MatrixXd X(X_own.rows(), own_cols + kBlock * Eigen::Index(m.overlap.size()));
+    X.leftCols(own_cols) = X_own;
+    for (size_t k = 0; k < m.overlap.size(); ++k)
+        X.middleCols(own_cols + kBlock * Eigen::Index(k), kBlock) = pose(m.overlap[k]);
+    Eigen::MatrixXd F(X_own.rows(), kBlock * Eigen::Index(m.fixed.size()));
+    for (size_t k = 0; k < m.fixed.size(); ++k)
+        F.middleCols(kBlock * Eigen::Index(k), kBlock) = pose(m.fixed[k]);
+    m.agent->SetBlock(X);
+    m.agent->SetNeighborPoses(F);
+    m.agent->Update(grad_tol);
+    const Eigen::MatrixXd& out = m.agent->Block();
+    m.proposals.ids = m.overlap;
+    m.proposals.blocks = out.rightCols(out.cols() - own_cols);
+    return out.leftCols(own_cols);
+}
+
+const PoseBlocks& OverlapSweep::Proposals() const { return impl_->proposals; }
+int OverlapSweep::OverlapSize() const { return static_cast<int>(impl_->overlap.size()); }
+
+std::set<slam::PoseId> OverlapDomain(int robot, const std::vector<slam::LoopClosure>& edges,
+                                     int depth, const std::set<int>& later) {
+    Adjacency adjacent;
+    for (const auto& e : edges) {
+        adjacent[e.a].push_back(e.b);
+        adjacent[e.b].push_back(e.a);
+    }
+    std::set<slam::PoseId> own, third;
+    for (const auto& [id, next] : adjacent) {
+        if (id.robot == robot) own.insert(id);
+    }
+    const auto joinable = [&](const slam::PoseId& id) {
+        if (!later.count(id.robot)) return false;
+        for (const auto& j : adjacent.at(id)) {
+            if (j.robot != robot && !later.count(j.robot)) return false;
+        }
+        return true;
+    };
+    std::set<slam::PoseId> out = Reach(adjacent, own, depth, joinable);
+    // Poses of a later robot j within depth of a third robot's poses (neither robot nor j)
+    for (int j : later) {
+        std::set<slam::PoseId> sources;
+        for (const auto& [id, next] : adjacent) {
+            if (id.robot != robot && id.robot != j) sources.insert(id);
+        }
+        for (const auto& id :
+             Reach(adjacent, sources, depth, [j](const slam::PoseId& p) { return p.robot == j; })) {
+            out.erase(id);
+        }
+    }
+    return out;
+}
+
+}  // namespace certislam::certify

@@ -1,0 +1,56 @@
+// A robot's block update over an overlapping domain (multiplicative Schwarz, as ROBO's
+// overlapping blocks): its own poses and the poses of later-sweeping neighbours within a few
+// edges of them are optimised together against every other pose held fixed, so f falls with each
+// update as in RBCD. The neighbours start their own sweep of the round from the poses proposed
+// here (TeamRounds applies them), which carries the coupling across the robots' boundary and
+// cuts the rounds.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <set>
+#include <vector>
+
+#include "certify/pipeline/solver_state.h"
+#include "slam/backend/rbcd_agent.h"
+#include "slam/core/loop_closure.h"
+
+namespace certislam::certify {
+
+/// One robot's overlapping block update (plain data in and out).
+class OverlapSweep {
+  public:
+    /// Robot `robot` with `n_own` poses at rank `rank`. `edges`: every edge touching an own or an
+    /// overlap pose (more are ignored); `overlap`: other robots' poses optimised with the own
+    /// block (OverlapDomain).
+    OverlapSweep(int robot, int n_own, int rank, const std::vector<slam::LoopClosure>& edges,
+                 const std::set<slam::PoseId>& overlap, const slam::RbcdConfig& config);
+    ~OverlapSweep();
+    OverlapSweep(OverlapSweep&&) noexcept;
+    OverlapSweep& operator=(OverlapSweep&&) noexcept;
+
+    /// One update of the domain from own block `X_own` and the other robots' poses `others`
+    /// (every overlap pose and every pose beyond the domain that an edge touches must be among
+    /// them; std::invalid_argument otherwise), until the domain's gradient is <= grad_tol or
+    /// dropped by the block reduction. Returns the new own block; Proposals() holds the overlap.
+    Eigen::MatrixXd Sweep(const Eigen::MatrixXd& X_own, const PoseBlocks& others, double grad_tol);
+    /// The overlap poses after the last Sweep (empty before): what the neighbours start from.
+    const PoseBlocks& Proposals() const;
+    /// Other robots' poses in the domain.
+    int OverlapSize() const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// The overlap of robot `robot`: poses of robots in `later` (its neighbours that sweep after it)
+/// within `depth` edges of its own poses, walking through those robots' poses only. A pose joins
+/// only when every pose next to it is `robot`'s or a `later` robot's (the poses fixed beyond the
+/// domain are then among those its neighbours send), and not within `depth` edges of a third
+/// robot's poses (two robots never propose the same pose in one round). `edges`: every edge
+/// within 2 depth + 1 of the own poses (more is fine). depth 0: empty.
+std::set<slam::PoseId> OverlapDomain(int robot, const std::vector<slam::LoopClosure>& edges,
+                                     int depth, const std::set<int>& later);
+
+}  // namespace certislam::certify

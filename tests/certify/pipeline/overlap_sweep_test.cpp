@@ -1,0 +1,63 @@
+// Overlapping sweeps: which poses of later neighbours a robot's domain takes, and what a domain
+// update needs.
+#include "certify/pipeline/overlap_sweep.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <stdexcept>
+#include <vector>
+
+namespace certislam::certify {
+namespace {
+
+slam::LoopClosure Edge(slam::PoseId a, slam::PoseId b) {
+    slam::LoopClosure e;
+    e.a = a;
+    e.b = b;
+    e.T_a_b = Eigen::Isometry3d::Identity();
+    return e;
+}
+
+// Robots 0 (4 poses), 1 (6 poses) and 2 (4 poses), each a chain, joined end to end:
+// 0/3 - 1/0 and 1/5 - 2/0.
+std::vector<slam::LoopClosure> ThreeChains() {
+    std::vector<slam::LoopClosure> out;
+    for (const auto& [robot, n] : std::vector<std::pair<int, int>>{{0, 4}, {1, 6}, {2, 4}}) {
+        for (int k = 0; k + 1 < n; ++k) out.push_back(Edge({robot, k}, {robot, k + 1}));
+    }
+    out.push_back(Edge({0, 3}, {1, 0}));
+    out.push_back(Edge({1, 5}, {2, 0}));
+    return out;
+}
+
+TEST(OverlapDomain, TakesALaterNeighboursPosesWithinTheDepth) {
+    const std::set<slam::PoseId> two{{1, 0}, {1, 1}};
+    EXPECT_EQ(OverlapDomain(0, ThreeChains(), 2, {1}), two);
+    EXPECT_TRUE(OverlapDomain(0, ThreeChains(), 0, {1}).empty());
+    EXPECT_TRUE(OverlapDomain(0, ThreeChains(), 2, {}).empty());  // robot 1 sweeps first
+}
+
+// Depth 5 would reach 1/4 from robot 0, but robot 2 is as near to 1/1 .. 1/5 (it could propose
+// them in the same round), and 1/5 touches robot 2, which is not a later neighbour of robot 0.
+TEST(OverlapDomain, LeavesOutPosesAThirdRobotReaches) {
+    const std::set<slam::PoseId> first{{1, 0}};
+    EXPECT_EQ(OverlapDomain(0, ThreeChains(), 5, {1}), first);
+}
+
+TEST(OverlapSweep, NamesADomainPoseItWasNotSent) {
+    const auto edges = ThreeChains();
+    OverlapSweep sweep(0, 4, 5, edges, OverlapDomain(0, edges, 2, {1}), slam::RbcdConfig{});
+    EXPECT_EQ(sweep.OverlapSize(), 2);
+    Eigen::MatrixXd X = Eigen::MatrixXd::Zero(5, 16);
+    for (int k = 0; k < 4; ++k) X.block<3, 3>(0, 4 * k).setIdentity();
+    try {
+        sweep.Sweep(X, PoseBlocks{}, 1e-6);
+        FAIL() << "no throw";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("pose 1/0"), std::string::npos) << e.what();
+    }
+}
+
+}  // namespace
+}  // namespace certislam::certify

@@ -120,7 +120,7 @@ std::set<slam::PoseId> OverlapDomain(int robot, const std::vector<slam::LoopClos
         adjacent[e.a].push_back(e.b);
         adjacent[e.b].push_back(e.a);
     }
-    std::set<slam::PoseId> own, third;
+    std::set<slam::PoseId> own;
     for (const auto& [id, next] : adjacent) {
         if (id.robot == robot) own.insert(id);
     }
@@ -131,19 +131,7 @@ std::set<slam::PoseId> OverlapDomain(int robot, const std::vector<slam::LoopClos
         }
         return true;
     };
-    std::set<slam::PoseId> out = Reach(adjacent, own, depth, joinable);
-    // Poses of a later robot j within depth of a third robot's poses (neither robot nor j)
-    for (int j : later) {
-        std::set<slam::PoseId> sources;
-        for (const auto& [id, next] : adjacent) {
-            if (id.robot != robot && id.robot != j) sources.insert(id);
-        }
-        for (const auto& id :
-             Reach(adjacent, sources, depth, [j](const slam::PoseId& p) { return p.robot == j; })) {
-            out.erase(id);
-        }
-    }
-    return out;
+    return Reach(adjacent, own, depth, joinable);
 }
 
 }  // namespace certislam::certify

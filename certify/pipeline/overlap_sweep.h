@@ -46,10 +46,10 @@ class OverlapSweep {
 
 /// The overlap of robot `robot`: poses of robots in `later` (its neighbours that sweep after it)
 /// within `depth` edges of its own poses, walking through those robots' poses only. A pose joins
-/// only when every pose next to it is `robot`'s or a `later` robot's (the poses fixed beyond the
-/// domain are then among those its neighbours send), and not within `depth` edges of a third
-/// robot's poses (two robots never propose the same pose in one round). `edges`: every edge
-/// within 2 depth + 1 of the own poses (more is fine). depth 0: empty.
+/// only when every pose next to it is `robot`'s or a `later` robot's: the poses fixed beyond the
+/// domain are then among those its neighbours send. Two earlier robots may propose the same pose
+/// (TeamRounds takes the later sweeper's). `edges`: every edge within depth + 1 of the own poses
+/// (more is fine). depth 0: empty.
 std::set<slam::PoseId> OverlapDomain(int robot, const std::vector<slam::LoopClosure>& edges,
                                      int depth, const std::set<int>& later);
 

@@ -121,7 +121,7 @@ PoseBlocks TeamRounds::NeighbourPoses(std::uint64_t round, bool extrapolate_high
         }
         rows = blocks.rows();
         cols += kept;
-        parts.push_back(mine.leftCols(kept));
+        parts.emplace_back(mine.leftCols(kept));
     }
     out.blocks.resize(rows, cols);
     Eigen::Index c = 0;
@@ -133,8 +133,13 @@ PoseBlocks TeamRounds::NeighbourPoses(std::uint64_t round, bool extrapolate_high
 }
 
 void TeamRounds::ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start) const {
+    // In sweep order: a pose two earlier neighbours proposed takes the later sweeper's proposal.
+    std::vector<std::pair<int, int>> earlier;  // (colour, robot)
     for (int j : neighbours_) {
-        if (!Earlier(j, round)) continue;
+        if (Earlier(j, round)) earlier.emplace_back(colors_.count(j) ? colors_.at(j) : 0, j);
+    }
+    std::sort(earlier.begin(), earlier.end());
+    for (const auto& [color, j] : earlier) {
         const auto& p = nbr_.at(j).at(round);  // HaveNeighbours: an earlier one's poses are in
         for (size_t k = 0; k < p.ids.size(); ++k) {
             const slam::PoseId& id = p.ids[k];

@@ -95,7 +95,8 @@ class TeamRounds {
     bool Earlier(int j, std::uint64_t round) const;
     bool HaveNeighbours(std::uint64_t round, bool lower_only) const;
     /// Own poses that an earlier neighbour's overlapping sweep of `round` proposed replace those
-    /// of the start (multiplicative Schwarz: the sweep goes on from them).
+    /// of the start (multiplicative Schwarz: the sweep goes on from them); of two proposals of
+    /// one pose, the later sweeper's.
     void ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start) const;
     PoseBlocks NeighbourPoses(std::uint64_t round, bool extrapolate_higher) const;
     void Decide();

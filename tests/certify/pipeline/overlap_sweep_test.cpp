@@ -38,11 +38,13 @@ TEST(OverlapDomain, TakesALaterNeighboursPosesWithinTheDepth) {
     EXPECT_TRUE(OverlapDomain(0, ThreeChains(), 2, {}).empty());  // robot 1 sweeps first
 }
 
-// Depth 5 would reach 1/4 from robot 0, but robot 2 is as near to 1/1 .. 1/5 (it could propose
-// them in the same round), and 1/5 touches robot 2, which is not a later neighbour of robot 0.
-TEST(OverlapDomain, LeavesOutPosesAThirdRobotReaches) {
+// Depth 5 reaches 1/0 .. 1/4 from robot 0, not 1/5: it touches robot 2, which is not a later
+// neighbour of robot 0 (its pose could not be held fixed).
+TEST(OverlapDomain, StopsBeforePosesTouchingOtherRobots) {
+    const std::set<slam::PoseId> four{{1, 0}, {1, 1}, {1, 2}, {1, 3}, {1, 4}};
+    EXPECT_EQ(OverlapDomain(0, ThreeChains(), 5, {1}), four);
     const std::set<slam::PoseId> first{{1, 0}};
-    EXPECT_EQ(OverlapDomain(0, ThreeChains(), 5, {1}), first);
+    EXPECT_EQ(OverlapDomain(0, ThreeChains(), 1, {1}), first);
 }
 
 TEST(OverlapSweep, NamesADomainPoseItWasNotSent) {

@@ -284,6 +284,7 @@ v1::PublicPoses ToProto(const certify::PoseBlocks& poses) {
     out.set_team_round(poses.team_round);
     out.set_sweep_color(static_cast<std::uint32_t>(poses.sweep_color));
     for (const auto& id : poses.ids) *out.add_pose_ids() = ToProto(id);
+    for (const auto& e : poses.edges) *out.add_boundary_edges() = ToProto(e);
     // Column-major: block k's r x 4 values are contiguous.
     out.mutable_blocks()->Assign(poses.blocks.data(), poses.blocks.data() + poses.blocks.size());
     return out;
@@ -302,6 +303,11 @@ std::optional<certify::PoseBlocks> FromProto(const v1::PublicPoses& poses) {
         const auto parsed = FromProto(id);
         if (!parsed) return std::nullopt;
         out.ids.push_back(*parsed);
+    }
+    for (const auto& e : poses.boundary_edges()) {
+        auto edge = FromProto(e);
+        if (!edge) return std::nullopt;
+        out.edges.push_back(std::move(*edge));
     }
     out.blocks = Eigen::Map<const Eigen::MatrixXd>(poses.blocks().data(), r,
                                                    static_cast<Eigen::Index>(4 * count));

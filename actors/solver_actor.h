@@ -17,6 +17,7 @@
 
 #include "actors/durable_log.h"
 #include "actors/node_actor.h"
+#include "certify/pipeline/overlap_sweep.h"
 #include "certify/pipeline/solver_state.h"
 #include "certify/pipeline/team_rounds.h"
 #include "certislam/v1/certificate.pb.h"
@@ -186,8 +187,9 @@ class SolverActor final : public NodeActor {
     std::optional<v1::CertificateReport> report_;
     std::chrono::steady_clock::time_point changed_ = std::chrono::steady_clock::now();
 
-    std::optional<certify::TeamRounds> rounds_;  ///< synchronous mode, once final
-    int rounds_level_ = -1;                      ///< staircase level rounds_ belongs to
+    std::optional<certify::TeamRounds> rounds_;     ///< synchronous mode, once final
+    std::optional<certify::OverlapSweep> overlap_;  ///< rounds_' overlapping sweep, from round 1
+    int rounds_level_ = -1;                         ///< staircase level rounds_ belongs to
     bool rounds_converged_ = false;
     bool rounds_gave_up_ = false;
     std::uint64_t rounds_swept_ = 0;                 ///< over every level

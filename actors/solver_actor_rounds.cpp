@@ -32,7 +32,8 @@ bool SolverActor::InRounds() const {
 }
 
 void SolverActor::SendRoundPoses(std::uint64_t round) {
-    certify::PoseBlocks poses = state_.PublicPoses(steps_);
+    certify::PoseBlocks poses = certify::RoundPoses(state_, config_.rounds.overlap_depth, round,
+                                                    steps_, overlap_ ? &*overlap_ : nullptr);
     poses.team_round = round + 1;
     poses.sweep_color = rounds_->SweepColor();
     auto proto = ToProto(poses);
@@ -104,6 +105,7 @@ void SolverActor::NewSession(std::uint64_t session) {
     if (!rounds_ && !restored_ && !rounds_gave_up_) return;  // no rounds begun yet
     if (rounds_) rounds_restarts_ += rounds_->Restarts();
     rounds_.reset();
+    overlap_.reset();
     chordal_started_ = true;  // a restored block is kept too
     rounds_converged_ = false;
     rounds_gave_up_ = false;
@@ -128,9 +130,8 @@ bool SolverActor::SyncAction(const certify::RoundAction& a) {
             return true;
         case K::kSweep: {
             state_.SetNeighbourPoses(a.neighbours);
-            state_.SetOwnBlock(a.own_start);
-            const auto step = state_.StepTo(a.block_tol);
-            grad_norm_ = step.grad_norm;
+            grad_norm_ = certify::SweepRound(a, config_.rounds.overlap_depth, config_.solver.rbcd,
+                                             *rounds_, &state_, &overlap_);
             ++steps_;
             ++rounds_swept_;
             rounds_->SweepDone(a.round, state_.FullBlock(steps_).blocks);
@@ -185,6 +186,7 @@ void SolverActor::SyncTick() {
     if (rounds_ && rounds_level_ != state_.StaircaseLevel()) {
         rounds_restarts_ += rounds_->Restarts();
         rounds_.reset();  // a saddle escape: new rounds from the adopted block
+        overlap_.reset();
         rounds_converged_ = false;
         local_ok_ = false;
     }
@@ -210,6 +212,7 @@ void SolverActor::StartRounds() {
     const auto nbrs = state_.Neighbours();
     rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()),
                     config_.rounds);
+    overlap_.reset();
     rounds_level_ = state_.StaircaseLevel();
     local_ok_ = false;  // an asynchronous phase's convergence says nothing of the rounds
     if (rounds_level_ == 0 && !chordal_started_) state_.LocalChordalStart();

@@ -34,6 +34,7 @@ struct SolveOptions {
     bool distributed = false;
     std::string transport = "inproc";
     std::string eigensolver;  ///< empty: the certifier's default (lobpcg)
+    int overlap = -1;         ///< --distributed: solver.rounds_overlap; -1: its default
     double timeout_s = 600.0;
     double max_relative_bound = certify::CertificateConfig{}.max_relative_bound;
 };
@@ -162,6 +163,10 @@ void AddOptions(CLI::App& app, SolveOptions& o) {
                    "--distributed: the certificate's eigen-solver, lobpcg (block-Jacobi "
                    "preconditioned; default) or lanczos (certifier.eigensolver)")
         ->check(CLI::IsMember({"lanczos", "lobpcg"}));
+    app.add_option("--overlap", o.overlap,
+                   "--distributed: each robot's sweep also moves its later-sweeping neighbours' "
+                   "poses within this many edges (solver.rounds_overlap; 0: own poses only)")
+        ->check(CLI::Range(0, 16));
     app.add_option("--timeout", o.timeout_s, "--distributed: give up after this many seconds")
         ->check(CLI::PositiveNumber);
 }
@@ -177,6 +182,10 @@ int CheckOptionCombinations(const SolveOptions& o) {
         std::fprintf(stderr,
                      "certislam solve: error: --distributed: no --method lm, --robust, "
                      "--rank or --out\n");
+        return kExitUsage;
+    }
+    if (!o.distributed && o.overlap >= 0) {
+        std::fprintf(stderr, "certislam solve: error: --overlap needs --distributed\n");
         return kExitUsage;
     }
     if (!o.distributed && !o.eigensolver.empty()) {
@@ -216,6 +225,7 @@ int RunSolve(int argc, char** argv) {
         d.max_relative_bound = o.max_relative_bound;
         d.transport = o.transport;
         if (!o.eigensolver.empty()) d.eigensolver = o.eigensolver;
+        d.overlap = o.overlap;
         return RunDistributedSolve(graph, d);
     }
     certify::PoseGraphSolverConfig config;

@@ -76,6 +76,7 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
     actors::PoseGraphNodeConfig config;
     config.quiet = std::chrono::milliseconds(std::llround(o.quiet_s * 1000.0));
     config.certifier.certificate.max_relative_bound = o.max_relative_bound;
+    if (o.overlap >= 0) config.solver.rounds.overlap_depth = o.overlap;
     config.certifier.lanczos.method = o.eigensolver == "lanczos"
                                           ? certify::LanczosSettings::Method::kLanczos
                                           : certify::LanczosSettings::Method::kLobpcg;
@@ -83,6 +84,7 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
         actors::RunPoseGraphTeam(graphs, config, std::chrono::duration<double>(o.timeout_s));
     nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));
     j["eigensolver"] = o.eigensolver;
+    j["overlap"] = config.solver.rounds.overlap_depth;
     return PrintDistributedReport(&j, result, graph, o);
 }
 

@@ -22,6 +22,8 @@ struct DistributedSolveOptions {
     double quiet_s = 0.3;                ///< done: certified and unchanged this long
     std::string transport = "inproc";    ///< inproc (one process), ipc or tcp (robot processes)
     std::string eigensolver = "lobpcg";  ///< the certificate's: lobpcg or lanczos
+    /// The rounds' overlapping sweeps (solver.rounds_overlap); -1: the configuration's default.
+    int overlap = -1;
 };
 
 /// Adds the file's fields to the team's report `j` (of `result`) and prints it (JSON or text);

@@ -28,6 +28,7 @@
 #include <utility>
 
 #include "bin/command.h"
+#include "certify/pipeline/team_rounds.h"
 #include "slam/core/graph_split.h"
 
 namespace certislam::bin {
@@ -117,6 +118,7 @@ nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partit
     config["quiet_s"] = o.quiet_s;
     config["certifier"]["max_relative_bound"] = o.max_relative_bound;
     config["certifier"]["eigensolver"] = o.eigensolver;
+    if (o.overlap >= 0) config["solver"]["rounds_overlap"] = o.overlap;
     config["source"] = {{"kind", "pose_graph"}, {"graph", fs::absolute(o.file).string()}};
     for (int k = 0; k < robots; ++k) {
         config["source"]["ranges"][std::to_string(k)] = {{"begin", partition.begin[k]},
@@ -371,6 +373,7 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
     const actors::PoseGraphTeamResult result = MergeRobotReports(reports);
     nlohmann::json j = TeamResultJson(result, partition.num_robots(), o.transport);
     j["eigensolver"] = o.eigensolver;
+    j["overlap"] = o.overlap >= 0 ? o.overlap : certify::TeamRoundsConfig{}.overlap_depth;
     j["peak_rss_mb"] = peak;  // the largest robot process
     j["peak_rss_mb_by_robot"] = rss;
     j["wall_seconds"] = run.wall;

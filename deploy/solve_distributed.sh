@@ -7,6 +7,7 @@
 # Usage: deploy/solve_distributed.sh [timeout_s per run (default 600)] [files...]
 #   env: CERTISLAM (the binary; default build/bin/certislam), DATA (default ../shared/data/g2o),
 #        ROBOTS (default 5), TRANSPORT (inproc, ipc or tcp; default tcp),
+#        OVERLAP (the rounds' overlapping depth, solve --overlap; default the solver's),
 #        OUT (JSON lines, default out/solve_distributed.jsonl)
 set -uo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -17,6 +18,8 @@ shift || true
 robots="${ROBOTS:-5}"
 transport="${TRANSPORT:-tcp}"
 out="${OUT:-$root/out/solve_distributed.jsonl}"
+overlap=()
+if [ -n "${OVERLAP:-}" ]; then overlap=(--overlap "$OVERLAP"); fi
 mkdir -p "$(dirname "$out")"
 : > "$out"
 
@@ -33,16 +36,16 @@ kitti_00.g2o -
 multirobot/tunnels -
 LIST
 
-echo "| file | robots | transport | verdict | cost vs --robots 1 | team iterations | dpgo | certificate rounds | Lanczos steps | solver MB | certifier MB | kbit / iteration | seconds | wall s | --robots 1 s | ratio (wall) | peak RSS / robot MB |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| file | robots | transport | overlap | verdict | cost vs --robots 1 | team iterations | dpgo | certificate rounds | Lanczos steps | solver MB | certifier MB | kbit / iteration | seconds | wall s | --robots 1 s | ratio (wall) | peak RSS / robot MB |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 while read -r file dpgo; do
     if [ $# -gt 0 ] && ! printf '%s\n' "$@" | grep -qx "$file"; then continue; fi
     one="$(timeout "$timeout_s" "$bin" solve "$data/$file" --robots 1 --json --quiet 2>/dev/null)"
     team="$(timeout $((timeout_s + 60)) "$bin" solve "$data/$file" --robots "$robots" --distributed \
-            --transport "$transport" --timeout "$timeout_s" --json 2>&1)"
+            --transport "$transport" --timeout "$timeout_s" "${overlap[@]}" --json 2>&1)"
     rc=$?
     if ! printf '%s' "$team" | python3 -c 'import json,sys; json.load(sys.stdin)' 2>/dev/null; then
-        echo "| $file | $robots | $transport | exit $rc: $(printf '%s' "$team" | tail -1 | cut -c1-120) |"
+        echo "| $file | $robots | $transport | ${OVERLAP:-} | exit $rc: $(printf '%s' "$team" | tail -1 | cut -c1-120) |"
         continue
     fi
     printf '%s\n' "$team" | python3 -c 'import json,sys; print(json.dumps(json.load(sys.stdin)))' >> "$out"
@@ -57,8 +60,8 @@ rel = "%.1e" % (abs(t["cost"] - one["cost"]) / one["cost"]) if one else "-"
 wall = t.get("wall_seconds", t["seconds"])
 ratio = "%.1fx" % (wall / one["seconds"]) if one and one["seconds"] > 0 else "-"
 verdict = t["verdict"] if t["certified"] else "**%s**" % t["verdict"]
-print("| %s | %d | %s | %s | %s | %d | %s | %d | %d | %.1f | %.1f | %.0f | %.1f | %.1f | %s | %s | %.0f |" % (
-    file, t["robots"], t["transport"], verdict, rel, t["iterations"], dpgo,
+print("| %s | %d | %s | %s | %s | %s | %d | %s | %d | %d | %.1f | %.1f | %.0f | %.1f | %.1f | %s | %s | %.0f |" % (
+    file, t["robots"], t["transport"], t.get("overlap", "-"), verdict, rel, t["iterations"], dpgo,
     t["certificate_rounds"], t["lanczos_steps"], b["by_actor"].get("solver", 0) / 1e6,
     b["by_actor"].get("certifier", 0) / 1e6, b["total"] * 8 / 1e3 / it, t["seconds"], wall,
     "%.2f" % one["seconds"] if one else "-", ratio, t["peak_rss_mb"]))

@@ -179,6 +179,13 @@ std::vector<ConfigKey> SolverAndCertifierKeys() {
             {0.0, 1.0, true, true},
             "solver.mode rounds on a keyframe source: the rounds stop at ||grad|| <= this * "
             "max(1, f) (pose graphs: solve --distributed's)"),
+        Num<int>(
+            "solver.rounds_overlap",
+            [](TeamConfig & c, int) -> auto& { return c.node.solver.rounds.overlap_depth; },
+            {0.0, 16.0},
+            "solver.mode rounds: a robot's sweep also moves the poses of later-sweeping "
+            "neighbours within this many edges of its own, and they go on from there "
+            "(overlapping blocks; 0: own poses only)"),
         Num<double>(
             "solver.odometry_sigma_t_m", [](TeamConfig & c, int) -> auto& {
                 return c.node.solver.solver.noise.odometry_sigma_t_m;

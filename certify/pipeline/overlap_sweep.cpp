@@ -5,6 +5,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace certislam::certify {
 namespace {
@@ -40,6 +41,7 @@ struct OverlapSweep::Impl {
     std::vector<slam::PoseId> fixed;    ///< beyond the domain, local n_own + |overlap| + k
     std::optional<slam::RbcdAgent> agent;
     PoseBlocks proposals;
+    double grad_norm = 0.0;
 };
 
 OverlapSweep::OverlapSweep(int robot, int n_own, int rank,
@@ -103,7 +105,8 @@ Eigen::MatrixXd OverlapSweep::Sweep(const Eigen::MatrixXd& X_own, const PoseBloc
         F.middleCols(kBlock * Eigen::Index(k), kBlock) = pose(m.fixed[k]);
     m.agent->SetBlock(X);
     m.agent->SetNeighborPoses(F);
-    m.agent->Update(grad_tol);
+    const slam::RbcdAgentStatus status = m.agent->Update(grad_tol);
+    m.grad_norm = status.rtr_iterations == 0 ? status.grad_norm_before : status.grad_norm_after;
     const Eigen::MatrixXd& out = m.agent->Block();
     m.proposals.ids = m.overlap;
     m.proposals.blocks = out.rightCols(out.cols() - own_cols);
@@ -111,6 +114,7 @@ Eigen::MatrixXd OverlapSweep::Sweep(const Eigen::MatrixXd& X_own, const PoseBloc
 }
 
 const PoseBlocks& OverlapSweep::Proposals() const { return impl_->proposals; }
+double OverlapSweep::GradNorm() const { return impl_->grad_norm; }
 int OverlapSweep::OverlapSize() const { return static_cast<int>(impl_->overlap.size()); }
 
 std::set<slam::PoseId> OverlapDomain(int robot, const std::vector<slam::LoopClosure>& edges,
@@ -132,6 +136,87 @@ std::set<slam::PoseId> OverlapDomain(int robot, const std::vector<slam::LoopClos
         return true;
     };
     return Reach(adjacent, own, depth, joinable);
+}
+
+std::vector<slam::LoopClosure> EdgesTouching(const SolverState& me) {
+    std::vector<slam::LoopClosure> out = me.OwnEdges();  // odometry and own-tail loops
+    for (const auto& l : me.InterRobotLoops()) {
+        if (l.b.robot == me.robot() && l.a.robot != me.robot()) out.push_back(l);
+    }
+    return out;
+}
+
+PoseBlocks RoundPoses(const SolverState& me, int depth, std::uint64_t round,
+                      std::uint64_t iteration, const OverlapSweep* sweep) {
+    if (depth == 0) return me.PublicPoses(iteration);
+    const std::vector<slam::LoopClosure> edges = EdgesTouching(me);
+    Adjacency own;  // through own poses only
+    std::set<slam::PoseId> ends;
+    for (const auto& e : edges) {
+        if (e.a.robot == me.robot() && e.b.robot == me.robot()) {
+            own[e.a].push_back(e.b);
+            own[e.b].push_back(e.a);
+        } else {
+            ends.insert(e.a.robot == me.robot() ? e.a : e.b);
+        }
+    }
+    const auto any = [](const slam::PoseId&) { return true; };
+    std::set<slam::PoseId> near = Reach(own, ends, depth, any);  // within depth of the ends
+    near.insert(ends.begin(), ends.end());
+    near.insert({me.robot(), 0});  // the anchor, as PublicPoses
+    const PoseBlocks full = me.FullBlock(iteration);
+    PoseBlocks out;
+    out.iteration = iteration;
+    out.staircase_level = full.staircase_level;
+    const PoseBlocks* proposals = sweep != nullptr ? &sweep->Proposals() : nullptr;
+    const Eigen::Index extra = proposals != nullptr ? proposals->blocks.cols() : 0;
+    out.blocks.resize(full.blocks.rows(), kBlock * Eigen::Index(near.size()) + extra);
+    Eigen::Index c = 0;
+    for (const auto& id : near) {
+        if (id.index < 0 || id.index >= me.NumPoses()) continue;
+        out.ids.push_back(id);
+        out.blocks.middleCols(c, kBlock) = full.blocks.middleCols(kBlock * id.index, kBlock);
+        c += kBlock;
+    }
+    if (extra > 0 && proposals->blocks.rows() == out.blocks.rows()) {
+        out.ids.insert(out.ids.end(), proposals->ids.begin(), proposals->ids.end());
+        out.blocks.middleCols(c, extra) = proposals->blocks;
+        c += extra;
+    }
+    out.blocks.conservativeResize(Eigen::NoChange, c);
+    if (round == 0) {  // the edges of the poses a neighbour's domain may take: within depth - 1
+        const std::set<slam::PoseId> inner =
+            depth > 1 ? Reach(own, ends, depth - 1, any) : std::set<slam::PoseId>{};
+        for (const auto& e : edges) {
+            const slam::PoseId& mine = e.a.robot == me.robot() ? e.a : e.b;
+            const slam::PoseId& other = e.a.robot == me.robot() ? e.b : e.a;
+            if (ends.count(mine) || inner.count(mine) ||
+                (other.robot == me.robot() && (ends.count(other) || inner.count(other)))) {
+                out.edges.push_back(e);
+            }
+        }
+    }
+    return out;
+}
+
+double SweepRound(const RoundAction& a, int depth, const slam::RbcdConfig& rbcd,
+                  const TeamRounds& rounds, SolverState* me, std::optional<OverlapSweep>* sweep) {
+    me->SetOwnBlock(a.own_start);
+    if (depth > 0 && !*sweep) {  // from round 1: the colours and the neighbours' edges are in
+        std::vector<slam::LoopClosure> edges = EdgesTouching(*me);
+        std::set<std::pair<slam::PoseId, slam::PoseId>> known;  // two neighbours send their edge
+        for (const auto& e : edges) known.insert({e.a, e.b});
+        for (const auto& e : rounds.NeighbourEdges()) {
+            if (known.insert({e.a, e.b}).second) edges.push_back(e);
+        }
+        sweep->emplace(me->robot(), me->NumPoses(), me->Rank(), edges,
+                       OverlapDomain(me->robot(), edges, depth, rounds.LaterNeighbours()), rbcd);
+    }
+    if (*sweep && (*sweep)->OverlapSize() > 0) {
+        me->SetOwnBlock((*sweep)->Sweep(a.own_start, me->NeighbourBlocks(), a.block_tol));
+        return (*sweep)->GradNorm();
+    }
+    return me->StepTo(a.block_tol).grad_norm;
 }
 
 }  // namespace certislam::certify

@@ -7,11 +7,14 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <memory>
+#include <optional>
 #include <set>
 #include <vector>
 
 #include "certify/pipeline/solver_state.h"
+#include "certify/pipeline/team_rounds.h"
 #include "slam/backend/rbcd_agent.h"
 #include "slam/core/loop_closure.h"
 
@@ -36,6 +39,8 @@ class OverlapSweep {
     Eigen::MatrixXd Sweep(const Eigen::MatrixXd& X_own, const PoseBlocks& others, double grad_tol);
     /// The overlap poses after the last Sweep (empty before): what the neighbours start from.
     const PoseBlocks& Proposals() const;
+    /// The domain's gradient norm after the last Sweep.
+    double GradNorm() const;
     /// Other robots' poses in the domain.
     int OverlapSize() const;
 
@@ -52,5 +57,21 @@ class OverlapSweep {
 /// (more is fine). depth 0: empty.
 std::set<slam::PoseId> OverlapDomain(int robot, const std::vector<slam::LoopClosure>& edges,
                                      int depth, const std::set<int>& later);
+
+/// Every edge touching `me`'s poses, each once (odometry and loops).
+std::vector<slam::LoopClosure> EdgesTouching(const SolverState& me);
+
+/// What robot `me` sends after its placement or sweep of `round` in rounds of overlap `depth`:
+/// depth 0, its public poses; otherwise its poses within `depth` edges of its neighbours' (what
+/// their domains read, pose 0 always), with the edges touching those within depth - 1 at round 0
+/// (their domains' edges) and the proposals of `sweep` after an overlapping sweep.
+PoseBlocks RoundPoses(const SolverState& me, int depth, std::uint64_t round,
+                      std::uint64_t iteration, const OverlapSweep* sweep);
+
+/// Robot `me`'s sweep of round action `a` (kSweep): an overlapping one of `depth` whose domain
+/// (built at the first sweep into `*sweep`, from its own edges and those its neighbours sent) is
+/// not empty, otherwise RBCD's block update. Returns the block gradient norm after it.
+double SweepRound(const RoundAction& a, int depth, const slam::RbcdConfig& rbcd,
+                  const TeamRounds& rounds, SolverState* me, std::optional<OverlapSweep>* sweep);
 
 }  // namespace certislam::certify

@@ -50,7 +50,10 @@ TeamRounds::TeamRounds(int robot, std::vector<int> robots, std::set<int> neighbo
 
 void TeamRounds::OnPoses(int robot, std::uint64_t round, const PoseBlocks& poses) {
     if (neighbours_.count(robot) == 0 || round + 1 < accepted_prev_) return;
-    if (round == 0) colors_.emplace(robot, poses.sweep_color);  // the first one stays
+    if (round == 0) {  // the first one stays
+        colors_.emplace(robot, poses.sweep_color);
+        edges_.emplace(robot, poses.edges);
+    }
     nbr_[robot][round] = poses;
 }
 
@@ -159,6 +162,12 @@ std::set<int> TeamRounds::LaterNeighbours() const {
     for (int j : neighbours_) {
         if (!Earlier(j, 1)) out.insert(j);
     }
+    return out;
+}
+
+std::vector<slam::LoopClosure> TeamRounds::NeighbourEdges() const {
+    std::vector<slam::LoopClosure> out;
+    for (const auto& [robot, edges] : edges_) out.insert(out.end(), edges.begin(), edges.end());
     return out;
 }
 

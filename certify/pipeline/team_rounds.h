@@ -38,7 +38,7 @@ struct TeamRoundsConfig {
     /// Overlapping sweeps (OverlapSweep): a robot's block update also moves the poses of
     /// later-sweeping neighbours within this many edges of its own, and they go on from there.
     /// 0: each robot its own poses (RBCD). In [0, 16].
-    int overlap_depth = 0;
+    int overlap_depth = 4;
 };
 
 /// What the robot should do next.
@@ -88,6 +88,9 @@ class TeamRounds {
     /// Neighbours that sweep after this robot in every round from 1 on (known once placed): the
     /// robots whose poses an overlapping sweep may propose (OverlapSweep).
     std::set<int> LaterNeighbours() const;
+    /// The edges the neighbours sent with their round-0 poses (PoseBlocks::edges; the first
+    /// heard from each stays): what an overlapping sweep's domain needs beyond the own edges.
+    std::vector<slam::LoopClosure> NeighbourEdges() const;
 
   private:
     /// True when neighbour j sweeps `round` before this robot: round 0 in id order, later rounds
@@ -111,7 +114,8 @@ class TeamRounds {
     std::map<std::uint64_t, Eigen::MatrixXd> own_;  ///< own block by round
     std::map<int, std::map<std::uint64_t, PoseBlocks>> nbr_;
     std::map<int, int> colors_;  ///< neighbours' sweep colours, from their round-0 poses
-    int color_ = 0;              ///< own sweep colour (set with the round-0 placement)
+    std::map<int, std::vector<slam::LoopClosure>> edges_;  ///< neighbours' round-0 edges
+    int color_ = 0;  ///< own sweep colour (set with the round-0 placement)
     std::map<std::uint64_t, std::map<int, std::pair<double, double>>> sums_;
     std::uint64_t current_ = 0;        ///< the round in progress (0: start)
     bool evaluated_ = false;           ///< own sums of current_ sent

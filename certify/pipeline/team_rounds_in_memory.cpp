@@ -9,43 +9,6 @@
 #include <utility>
 
 namespace certislam::certify {
-namespace {
-
-/// Robot `me`'s placement (round 0) or sweep (overlapping when `depth` > 0 and its domain is not
-/// empty), reported to `rounds`; returns the poses it sends.
-PoseBlocks SweepOrPlace(const RoundAction& a, const std::vector<slam::LoopClosure>& edges,
-                        const slam::RbcdConfig& rbcd, int depth, TeamRounds* rounds,
-                        SolverState* me, std::optional<OverlapSweep>* overlapping) {
-    if (a.kind == RoundAction::Kind::kAlign) {
-        me->AlignToLowerNeighbour();
-    } else {
-        me->SetOwnBlock(a.own_start);
-        if (depth > 0 && !*overlapping) {  // from round 1: the colours are known
-            overlapping->emplace(
-                me->robot(), me->NumPoses(), me->Rank(), edges,
-                OverlapDomain(me->robot(), edges, depth, rounds->LaterNeighbours()), rbcd);
-        }
-        if (*overlapping && (*overlapping)->OverlapSize() > 0) {
-            me->SetOwnBlock((*overlapping)->Sweep(a.own_start, me->NeighbourBlocks(), a.block_tol));
-        } else {
-            me->StepTo(a.block_tol);
-        }
-    }
-    rounds->SweepDone(a.round, me->FullBlock(0).blocks);
-    // Overlapping sweeps read the neighbours' poses beyond their public ones (in one process the
-    // whole block goes) and send their proposals.
-    PoseBlocks poses = depth > 0 ? me->FullBlock(0) : me->PublicPoses(0);
-    if (a.kind == RoundAction::Kind::kSweep && *overlapping && (*overlapping)->OverlapSize() > 0) {
-        const PoseBlocks& p = (*overlapping)->Proposals();
-        poses.ids.insert(poses.ids.end(), p.ids.begin(), p.ids.end());
-        Eigen::MatrixXd both(poses.blocks.rows(), poses.blocks.cols() + p.blocks.cols());
-        both << poses.blocks, p.blocks;
-        poses.blocks = std::move(both);
-    }
-    return poses;
-}
-
-}  // namespace
 
 InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, SolverConfig solver,
                                    const TeamRoundsConfig& rounds) {
@@ -55,11 +18,6 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
     for (const auto& g : graphs) ids.push_back(g.robot);
     InMemoryTeam team;
     std::vector<TeamRounds> schedule;
-    std::vector<slam::LoopClosure> edges;  // every edge once: the overlapping sweeps' domains
-    for (const auto& g : graphs) {
-        for (const auto* part : {&g.intra, &g.inter})
-            edges.insert(edges.end(), part->begin(), part->end());
-    }
     std::vector<std::optional<OverlapSweep>> overlapping(graphs.size());
     for (const auto& g : graphs) {
         SolverState state(g.robot, solver);
@@ -94,8 +52,15 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
                     for (auto& peer : schedule)
                         peer.OnSums(me.robot(), a.round, e.cost, e.grad_norm);
                 } else {
-                    PoseBlocks poses = SweepOrPlace(a, edges, solver.rbcd, rounds.overlap_depth,
-                                                    &schedule[i], &me, &overlapping[i]);
+                    if (a.kind == K::kAlign) {
+                        me.AlignToLowerNeighbour();
+                    } else {
+                        SweepRound(a, rounds.overlap_depth, solver.rbcd, schedule[i], &me,
+                                   &overlapping[i]);
+                    }
+                    schedule[i].SweepDone(a.round, me.FullBlock(0).blocks);
+                    const OverlapSweep* sweep = overlapping[i] ? &*overlapping[i] : nullptr;
+                    PoseBlocks poses = RoundPoses(me, rounds.overlap_depth, a.round, 0, sweep);
                     poses.sweep_color = schedule[i].SweepColor();
                     for (auto& peer : schedule) peer.OnPoses(me.robot(), a.round, poses);
                 }

@@ -238,9 +238,10 @@ TEST(TeamRounds, ALaterRobotStartsFromTheProposalOfAnEarlierOne) {
 // Two robots on smallGrid3D: overlapping sweeps of depth 4 reach the same optimum in far fewer
 // rounds than each robot sweeping its own poses.
 TEST(TeamRounds, OverlappingSweepsReachTheOptimumInFewerRounds) {
-    TeamRoundsConfig overlapping;
+    TeamRoundsConfig own, overlapping;
+    own.overlap_depth = 0;
     overlapping.overlap_depth = 4;
-    InMemoryTeam plain = RunTeamRoundsInMemory(SmallGrid(2), SolverConfig{}, TeamRoundsConfig{});
+    InMemoryTeam plain = RunTeamRoundsInMemory(SmallGrid(2), SolverConfig{}, own);
     InMemoryTeam fast = RunTeamRoundsInMemory(SmallGrid(2), SolverConfig{}, overlapping);
     ASSERT_TRUE(plain.AllConverged());
     ASSERT_TRUE(fast.AllConverged());

@@ -207,6 +207,7 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
 
 void SolverActor::Changed() {
     tolerance_scale_ = 1.0;  // a new graph: the configured tolerance again
+    overlap_.reset();        // its domain is of the old graph
     refined_ = false;
     if (restored_) report_.reset();  // the checkpoint's report is of the graph before this change
     restored_ = false;

@@ -85,6 +85,11 @@ OverlapSweep& OverlapSweep::operator=(OverlapSweep&&) noexcept = default;
 Eigen::MatrixXd OverlapSweep::Sweep(const Eigen::MatrixXd& X_own, const PoseBlocks& others,
                                     double grad_tol) {
     Impl& m = *impl_;
+    if (X_own.cols() != kBlock * Eigen::Index(m.n_own)) {
+        throw std::invalid_argument("OverlapSweep: the own block has " +
+                                    std::to_string(X_own.cols() / kBlock) + " poses, not " +
+                                    std::to_string(m.n_own));
+    }
     std::map<slam::PoseId, Eigen::Index> at;
     for (size_t k = 0; k < others.ids.size(); ++k) at[others.ids[k]] = Eigen::Index(k);
     const auto pose = [&](const slam::PoseId& id) -> Eigen::MatrixXd {
@@ -204,17 +209,26 @@ double SweepRound(const RoundAction& a, int depth, const slam::RbcdConfig& rbcd,
     me->SetOwnBlock(a.own_start);
     if (depth > 0 && !*sweep) {  // from round 1: the colours and the neighbours' edges are in
         std::vector<slam::LoopClosure> edges = EdgesTouching(*me);
-        std::set<std::pair<slam::PoseId, slam::PoseId>> known;  // two neighbours send their edge
-        for (const auto& e : edges) known.insert({e.a, e.b});
+        // An edge between two neighbours comes from both; a sender's own edges only from it
+        // (parallel odometry and loop edges are distinct terms).
+        std::set<std::pair<slam::PoseId, slam::PoseId>> between;
         for (const auto& e : rounds.NeighbourEdges()) {
-            if (known.insert({e.a, e.b}).second) edges.push_back(e);
+            if (e.a.robot == e.b.robot || between.insert({e.a, e.b}).second) edges.push_back(e);
         }
         sweep->emplace(me->robot(), me->NumPoses(), me->Rank(), edges,
                        OverlapDomain(me->robot(), edges, depth, rounds.LaterNeighbours()), rbcd);
     }
     if (*sweep && (*sweep)->OverlapSize() > 0) {
-        me->SetOwnBlock((*sweep)->Sweep(a.own_start, me->NeighbourBlocks(), a.block_tol));
-        return (*sweep)->GradNorm();
+        try {
+            me->SetOwnBlock((*sweep)->Sweep(a.own_start, me->NeighbourBlocks(), a.block_tol));
+            return (*sweep)->GradNorm();
+        } catch (const std::invalid_argument&) {
+            // A domain pose no neighbour sent (a loop to a pose that never came): own poses only
+            // from here on.
+            sweep->emplace(me->robot(), me->NumPoses(), me->Rank(),
+                           std::vector<slam::LoopClosure>{}, std::set<slam::PoseId>{}, rbcd);
+            me->SetOwnBlock(a.own_start);
+        }
     }
     return me->StepTo(a.block_tol).grad_norm;
 }

@@ -1,9 +1,11 @@
 // A robot's block update over an overlapping domain (multiplicative Schwarz, as ROBO's
 // overlapping blocks): its own poses and the poses of later-sweeping neighbours within a few
-// edges of them are optimised together against every other pose held fixed, so f falls with each
-// update as in RBCD. The neighbours start their own sweep of the round from the poses proposed
-// here (TeamRounds applies them), which carries the coupling across the robots' boundary and
-// cuts the rounds.
+// edges of them are optimised together against every other pose held fixed (the domain's share
+// of f falls as in RBCD). The neighbours start their own sweep of the round from the poses
+// proposed here (TeamRounds applies them), which carries the coupling across the robots' boundary
+// and cuts the rounds. f of the whole round is not guaranteed to fall: a robot sweeping in
+// between, or one of the same colour next to the same poses, sees their values before the
+// proposal; the rounds' adaptive restart catches a round whose f rose.
 #pragma once
 
 #include <Eigen/Core>
@@ -34,8 +36,9 @@ class OverlapSweep {
 
     /// One update of the domain from own block `X_own` and the other robots' poses `others`
     /// (every overlap pose and every pose beyond the domain that an edge touches must be among
-    /// them; std::invalid_argument otherwise), until the domain's gradient is <= grad_tol or
-    /// dropped by the block reduction. Returns the new own block; Proposals() holds the overlap.
+    /// them, and X_own of the robot's n_own poses; std::invalid_argument otherwise), until the
+    /// domain's gradient is <= grad_tol or dropped by the block reduction. Returns the new own
+    /// block; Proposals() holds the overlap.
     Eigen::MatrixXd Sweep(const Eigen::MatrixXd& X_own, const PoseBlocks& others, double grad_tol);
     /// The overlap poses after the last Sweep (empty before): what the neighbours start from.
     const PoseBlocks& Proposals() const;
@@ -70,7 +73,8 @@ PoseBlocks RoundPoses(const SolverState& me, int depth, std::uint64_t round,
 
 /// Robot `me`'s sweep of round action `a` (kSweep): an overlapping one of `depth` whose domain
 /// (built at the first sweep into `*sweep`, from its own edges and those its neighbours sent) is
-/// not empty, otherwise RBCD's block update. Returns the block gradient norm after it.
+/// not empty, otherwise RBCD's block update (also from the first domain pose no neighbour sent
+/// on). Returns the block gradient norm after it.
 double SweepRound(const RoundAction& a, int depth, const slam::RbcdConfig& rbcd,
                   const TeamRounds& rounds, SolverState* me, std::optional<OverlapSweep>* sweep);
 

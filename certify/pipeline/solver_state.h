@@ -28,7 +28,7 @@ struct PoseBlocks {
     int staircase_level = 0;        ///< sender's saddle escapes so far
     std::uint64_t team_round = 0;   ///< 1 + synchronous round (TeamRounds); 0: asynchronous
     int sweep_color = 0;            ///< synchronous rounds: the sender's TeamRounds::SweepColor
-    /// Round 0 of overlapping sweeps: the sender's edges near its neighbours (OverlapEdges).
+    /// Round 0 of overlapping sweeps: the sender's edges near its neighbours (RoundPoses).
     std::vector<slam::LoopClosure> edges{};
 };
 

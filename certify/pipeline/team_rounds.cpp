@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -23,6 +24,21 @@ constexpr double kCostNoise = 1e-14;
 Eigen::MatrixXd Extrapolate(const Eigen::MatrixXd& X_a, const Eigen::MatrixXd& X_b, double beta) {
     if (beta == 0.0 || X_a.cols() != X_b.cols() || X_a.rows() != X_b.rows()) return X_a;
     return slam::ProjectToManifold(X_a + beta * (X_a - X_b), kDimension);
+}
+
+/// The poses of `sender` in its message `p` (ids and blocks), without its proposals for others.
+std::pair<std::vector<slam::PoseId>, Eigen::MatrixXd> SendersOwn(const PoseBlocks& p, int sender) {
+    std::pair<std::vector<slam::PoseId>, Eigen::MatrixXd> out;
+    out.second.resize(p.blocks.rows(), p.blocks.cols());
+    Eigen::Index kept = 0;
+    for (size_t k = 0; k < p.ids.size(); ++k) {
+        if (p.ids[k].robot != sender) continue;
+        out.first.push_back(p.ids[k]);
+        out.second.middleCols(kept, kBlock) = p.blocks.middleCols(kBlock * Eigen::Index(k), kBlock);
+        kept += kBlock;
+    }
+    out.second.conservativeResize(Eigen::NoChange, kept);
+    return out;
 }
 
 }  // namespace
@@ -52,7 +68,14 @@ void TeamRounds::OnPoses(int robot, std::uint64_t round, const PoseBlocks& poses
     if (neighbours_.count(robot) == 0 || round + 1 < accepted_prev_) return;
     if (round == 0) {  // the first one stays
         colors_.emplace(robot, poses.sweep_color);
-        edges_.emplace(robot, poses.edges);
+        // Only the sender's edges that this robot does not hold itself (those touching its poses).
+        std::vector<slam::LoopClosure> theirs;
+        std::copy_if(poses.edges.begin(), poses.edges.end(), std::back_inserter(theirs),
+                     [&](const slam::LoopClosure& e) {
+                         return (e.a.robot == robot || e.b.robot == robot) && e.a.robot != robot_ &&
+                                e.b.robot != robot_;
+                     });
+        edges_.emplace(robot, std::move(theirs));
     }
     nbr_[robot][round] = poses;
 }
@@ -101,30 +124,25 @@ PoseBlocks TeamRounds::NeighbourPoses(std::uint64_t round, bool extrapolate_high
     for (int j : neighbours_) {
         if (round == 0 && extrapolate_higher && j > robot_) continue;  // placement: lower only
         const auto& by_round = nbr_.at(j);
-        const PoseBlocks* p = nullptr;
-        Eigen::MatrixXd blocks;
-        if (extrapolate_higher && !Earlier(j, round)) {
-            p = &by_round.at(accepted_);
-            const auto prev = by_round.find(accepted_prev_);
-            blocks = prev == by_round.end() ? p->blocks
-                                            : Extrapolate(p->blocks, prev->second.blocks, beta_);
-        } else {
-            p = &by_round.at(round);
-            blocks = p->blocks;
-        }
         // The sender's own poses only: its proposals for other robots' poses (an overlapping
         // sweep) are for those robots, which start from them (ApplyProposals).
-        Eigen::MatrixXd mine(blocks.rows(), blocks.cols());
-        Eigen::Index kept = 0;
-        for (size_t k = 0; k < p->ids.size(); ++k) {
-            if (p->ids[k].robot != j) continue;
-            out.ids.push_back(p->ids[k]);
-            mine.middleCols(kept, kBlock) = blocks.middleCols(kBlock * Eigen::Index(k), kBlock);
-            kept += kBlock;
+        std::pair<std::vector<slam::PoseId>, Eigen::MatrixXd> mine;
+        if (extrapolate_higher && !Earlier(j, round)) {
+            mine = SendersOwn(by_round.at(accepted_), j);
+            const auto prev = by_round.find(accepted_prev_);
+            if (prev != by_round.end()) {
+                const auto before = SendersOwn(prev->second, j);
+                if (before.first == mine.first) {
+                    mine.second = Extrapolate(mine.second, before.second, beta_);
+                }
+            }
+        } else {
+            mine = SendersOwn(by_round.at(round), j);
         }
-        rows = blocks.rows();
-        cols += kept;
-        parts.emplace_back(mine.leftCols(kept));
+        out.ids.insert(out.ids.end(), mine.first.begin(), mine.first.end());
+        rows = mine.second.rows();
+        cols += mine.second.cols();
+        parts.push_back(std::move(mine.second));
     }
     out.blocks.resize(rows, cols);
     Eigen::Index c = 0;

@@ -41,8 +41,8 @@ TEST(OverlapDomain, TakesALaterNeighboursPosesWithinTheDepth) {
 // Depth 5 reaches 1/0 .. 1/4 from robot 0, not 1/5: it touches robot 2, which is not a later
 // neighbour of robot 0 (its pose could not be held fixed).
 TEST(OverlapDomain, StopsBeforePosesTouchingOtherRobots) {
-    const std::set<slam::PoseId> four{{1, 0}, {1, 1}, {1, 2}, {1, 3}, {1, 4}};
-    EXPECT_EQ(OverlapDomain(0, ThreeChains(), 5, {1}), four);
+    const std::set<slam::PoseId> five{{1, 0}, {1, 1}, {1, 2}, {1, 3}, {1, 4}};
+    EXPECT_EQ(OverlapDomain(0, ThreeChains(), 5, {1}), five);
     const std::set<slam::PoseId> first{{1, 0}};
     EXPECT_EQ(OverlapDomain(0, ThreeChains(), 1, {1}), first);
 }

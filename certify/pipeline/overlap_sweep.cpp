@@ -51,6 +51,7 @@ OverlapSweep::OverlapSweep(int robot, int n_own, int rank,
     Impl& m = *impl_;
     m.n_own = n_own;
     m.overlap.assign(overlap.begin(), overlap.end());
+    if (m.overlap.empty()) return;  // nothing to sweep beyond the own block: no second solver
     std::map<slam::PoseId, int> local;
     for (int k = 0; k < n_own; ++k) local[{robot, k}] = k;
     for (const auto& id : m.overlap) local.emplace(id, static_cast<int>(local.size()));
@@ -85,6 +86,7 @@ OverlapSweep& OverlapSweep::operator=(OverlapSweep&&) noexcept = default;
 Eigen::MatrixXd OverlapSweep::Sweep(const Eigen::MatrixXd& X_own, const PoseBlocks& others,
                                     double grad_tol) {
     Impl& m = *impl_;
+    if (!m.agent) throw std::invalid_argument("OverlapSweep: the domain has no overlap");
     if (X_own.cols() != kBlock * Eigen::Index(m.n_own)) {
         throw std::invalid_argument("OverlapSweep: the own block has " +
                                     std::to_string(X_own.cols() / kBlock) + " poses, not " +

@@ -93,8 +93,10 @@ std::vector<LoopClosure> IncrementalPcm::Consistent() const {
     for (const auto& [group, members] : groups_) {
         std::int64_t nodes = 0;
         bool exact = true;
+        auto& last = last_clique_[group];
         const auto clique =
-            MaximumClique(adjacency_.at(group), config_.max_branch_nodes, &nodes, &exact);
+            MaximumClique(adjacency_.at(group), config_.max_branch_nodes, &nodes, &exact, last);
+        last = clique;
         exact_ = exact_ && exact;
         if (static_cast<int>(clique.size()) < config_.min_clique_size) continue;
         for (int u : clique) keep[static_cast<size_t>(members[static_cast<size_t>(u)])] = true;

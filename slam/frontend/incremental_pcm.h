@@ -67,6 +67,9 @@ class IncrementalPcm {
     std::map<Group, std::vector<std::vector<int>>> adjacency_;  ///< per group, local indices
     int rejected_by_odometry_ = 0;
     mutable bool exact_ = true;
+    /// Each group's last maximum clique (member positions): the next search starts from it, as
+    /// a group only gains members and their pairwise tests never change.
+    mutable std::map<Group, std::vector<int>> last_clique_;
 };
 
 }  // namespace certislam::slam

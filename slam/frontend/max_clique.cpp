@@ -22,6 +22,17 @@ class CliqueSearch {
         }
     }
 
+    /// Starts from `clique` when it is one (distinct vertices, pairwise adjacent).
+    void Seed(const std::vector<int>& clique) {
+        for (size_t i = 0; i < clique.size(); ++i) {
+            if (clique[i] < 0 || clique[i] >= n_) return;
+            for (size_t j = 0; j < i; ++j) {
+                if (clique[i] == clique[j] || !adjacent_[Index(clique[i], clique[j])]) return;
+            }
+        }
+        best_ = clique;
+    }
+
     std::vector<int> Run() {
         // Initial order: by degree, highest last (MCQ expands from the end of the list).
         std::vector<int> order(n_);
@@ -68,7 +79,8 @@ class CliqueSearch {
     }
 
     void Expand(const std::vector<int>& candidates) {
-        if (++nodes_ > max_nodes_) return;
+        nodes_ += 1 + static_cast<std::int64_t>(candidates.size());
+        if (nodes_ > max_nodes_) return;
         std::vector<int> sorted, colours;
         ColourSort(candidates, sorted, colours);
         for (int i = static_cast<int>(sorted.size()) - 1; i >= 0; --i) {
@@ -100,8 +112,10 @@ class CliqueSearch {
 }  // namespace
 
 std::vector<int> MaximumClique(const std::vector<std::vector<int>>& adjacency,
-                               std::int64_t max_nodes, std::int64_t* nodes, bool* exact) {
+                               std::int64_t max_nodes, std::int64_t* nodes, bool* exact,
+                               const std::vector<int>& seed) {
     CliqueSearch search(adjacency, max_nodes);
+    search.Seed(seed);
     std::vector<int> clique = search.Run();
     std::sort(clique.begin(), clique.end());
     if (nodes != nullptr) *nodes = search.nodes();

@@ -25,9 +25,11 @@ struct PcmConfig {
     double odom_min_sigma_t_m = 0.1;             ///< > 0
     double odom_min_sigma_r_rad = 0.01;          ///< > 0
     int min_clique_size = 2;  ///< a group whose maximum clique is smaller keeps nothing, >= 1
-    bool check_intra_against_odometry = true;    ///< a loop within one robot must also agree
-                                                 ///< with that robot's odometry between a and b
-    std::int64_t max_branch_nodes = 50'000'000;  ///< clique search budget, >= 1
+    bool check_intra_against_odometry = true;  ///< a loop within one robot must also agree
+                                               ///< with that robot's odometry between a and b
+    /// Clique search budget in MaximumClique's work units (a branch node and its candidates),
+    /// >= 1: a loop matcher searches after every verified batch, so it must stay short.
+    std::int64_t max_branch_nodes = 5'000'000;
 
     /// Throws std::invalid_argument naming the field, its value and the rule.
     void Validate() const;

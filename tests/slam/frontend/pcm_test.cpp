@@ -92,6 +92,33 @@ TEST(MaximumClique, PlantedCliqueOfFortyInTwoHundredSparseVertices) {
     for (const int u : clique) EXPECT_EQ(u % 5, 0);
 }
 
+TEST(MaximumClique, StartsFromASeedCliqueAndIgnoresOneThatIsNot) {
+    // Vertices 0-4 form a 5-clique, 5-7 a triangle hanging off vertex 0.
+    std::vector<std::vector<int>> adjacency(8);
+    auto link = [&](int u, int v) {
+        adjacency[u].push_back(v);
+        adjacency[v].push_back(u);
+    };
+    for (int u = 0; u < 5; ++u) {
+        for (int v = u + 1; v < 5; ++v) link(u, v);
+    }
+    link(5, 6), link(5, 7), link(6, 7), link(0, 5);
+    bool exact = true;
+    // A budget the first branch node exhausts: the answer is the seed, flagged inexact.
+    const std::vector<int> triangle{5, 6, 7};
+    EXPECT_EQ(MaximumClique(adjacency, 1, nullptr, &exact, triangle), triangle);
+    EXPECT_FALSE(exact);
+    // With budget, a seed does not stop the search from finding the larger clique.
+    const std::vector<int> five{0, 1, 2, 3, 4};
+    EXPECT_EQ(MaximumClique(adjacency, 1'000'000, nullptr, &exact, triangle), five);
+    EXPECT_TRUE(exact);
+    // Not a clique (6 and 1 are not adjacent; a repeated vertex; out of range): ignored.
+    for (const std::vector<int>& bad :
+         {std::vector<int>{6, 1}, std::vector<int>{2, 2}, std::vector<int>{0, 9}}) {
+        EXPECT_TRUE(MaximumClique(adjacency, 1, nullptr, &exact, bad).empty());
+    }
+}
+
 Information6 IsotropicInformation(double sigma_t, double sigma_r) {
     Information6 info = Information6::Zero();
     info.diagonal() << 1 / (sigma_t * sigma_t), 1 / (sigma_t * sigma_t), 1 / (sigma_t * sigma_t),

@@ -457,6 +457,14 @@ void CertifierActor::RoundFinished() {
         dirty_ = true;
         return;
     }
+    if (decided->status == certify::CertificateResult::Status::kInconclusive &&
+        verdict.status == certify::DistributedVerdict::Status::kNotConverged) {
+        // The eigen-solve ran out of steps: at a settled iterate no changed bundle would open
+        // another round, so the anchor, which holds every bundle, checks this graph itself.
+        ++fallbacks_;
+        CheckCentrally(graph, X, v1::CERTIFICATE_PATH_FALLBACK);
+        return;
+    }
     NoteVerdict(decided->status == certify::CertificateResult::Status::kCertified, round_bundles_);
     auto report = ToProto(*decided, round_rank_);
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);

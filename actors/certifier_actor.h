@@ -59,7 +59,8 @@ struct CertifierConfig {
 
 /// Distributed-solution certifier. Its CertificateReport's `path` says which check gave the
 /// verdict: a distributed round, the anchor's centralised check (centralised mode), or the
-/// anchor's centralised check of a round that stayed silent for round_timeout (fallback).
+/// anchor's centralised check of a round that stayed silent for round_timeout or whose
+/// eigen-solve ran out of steps without a verdict (fallback).
 class CertifierActor final : public NodeActor {
   public:
     CertifierActor(zmq::context_t& context, TeamWiring wiring, CertifierConfig config);
@@ -74,7 +75,8 @@ class CertifierActor final : public NodeActor {
     /// Bytes of other robots' bundles this certifier received (counted here, in
     /// BytesSentToPeers() too: the publisher cannot tell its subscribers apart).
     std::uint64_t BundleBytesFromPeers() const { return bundle_bytes_.load(); }
-    /// Anchor: rounds abandoned for a silent robot and checked centrally instead.
+    /// Anchor: rounds checked centrally instead: abandoned for a silent robot, or ended
+    /// inconclusive because their eigen-solve ran out of steps.
     int Fallbacks() const { return fallbacks_.load(); }
     /// Lanczos steps (S v products, each one neighbour exchange and two sums) of every round
     /// this robot finished.

@@ -3,7 +3,8 @@
 // distributed mode every robot reaches the centralised lambda_min itself (only entries of v at
 // public poses and partial sums travel), at a certified optimum and at a known saddle; the
 // anchor's certificate (the central rule on the round's sums) has the central check's verdict,
-// objective, duality gap and lower bound to 1e-9; the centralised mode reports the same.
+// objective, duality gap and lower bound to 1e-9; the centralised mode reports the same; a round
+// whose eigen-solve ran out of steps without a verdict is checked by the anchor at once.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -209,12 +210,12 @@ TEST_P(CertifierTeam, EveryRobotReachesTheCentralisedLambdaMin) {
     }
 }
 
-/// The anchor's CertificateReport as a solver hears it, in one mode.
-std::optional<v1::CertificateReport> AnchorReport(const TeamProblem& p, bool distributed) {
+/// The anchor's first CertificateReport as a solver hears it, with the certifiers' `config`;
+/// `fallbacks`: the anchor's Fallbacks() then.
+std::optional<v1::CertificateReport> AnchorReport(const TeamProblem& p,
+                                                  const CertifierConfig& config,
+                                                  int* fallbacks = nullptr) {
     zmq::context_t context;
-    CertifierConfig config;
-    config.max_staircase_steps = 0;
-    config.distributed = distributed;
     const int robots = p.partition.num_robots();
     std::vector<std::unique_ptr<CertifierActor>> certifiers;
     for (int r = 0; r < robots; ++r) {
@@ -235,8 +236,17 @@ std::optional<v1::CertificateReport> AnchorReport(const TeamProblem& p, bool dis
                 report = transport::Unpack<v1::CertificateReport>(*m);
         }
     }
+    if (fallbacks) *fallbacks = certifiers.front()->Fallbacks();
     for (auto& c : certifiers) c->Stop();
     return report;
+}
+
+/// The anchor's report in one mode, without saddle escapes.
+std::optional<v1::CertificateReport> AnchorReport(const TeamProblem& p, bool distributed) {
+    CertifierConfig config;
+    config.max_staircase_steps = 0;
+    config.distributed = distributed;
+    return AnchorReport(p, config);
 }
 
 TEST(CertifierModes, CentralisedAndDistributedReportTheSameVerdictToTheSolvers) {
@@ -261,6 +271,25 @@ TEST(CertifierModes, CentralisedAndDistributedReportTheSameVerdictToTheSolvers) 
                         central.relative_suboptimality_bound, kAgree);
         }
     }
+}
+
+TEST(CertifierFallback, ARoundWhoseEigenSolveRanOutOfStepsIsCheckedCentrallyAtOnce) {
+    // At a saddle S + eta D does not factorize, so a round without lambda_min has no verdict; the
+    // bundles never change here, so no later round would give one.
+    const TeamProblem p = TwistedSaddle(2);
+    const auto central = certify::Certify(slam::ConnectionLaplacian(p.graph), p.X, 3);
+    ASSERT_EQ(central.status, certify::CertificateResult::Status::kNotOptimal);
+    CertifierConfig config;
+    config.max_staircase_steps = 0;
+    config.lanczos.lobpcg.max_iterations = 1;
+    config.round_timeout = std::chrono::milliseconds(60000);  // not the silent-round fallback
+    int fallbacks = 0;
+    const auto report = AnchorReport(p, config, &fallbacks);
+    ASSERT_TRUE(report.has_value()) << "no report: the team would wait for its timeout";
+    EXPECT_EQ(report->path(), v1::CERTIFICATE_PATH_FALLBACK);
+    EXPECT_EQ(report->verdict(), v1::CERTIFICATE_VERDICT_NOT_CERTIFIED);
+    EXPECT_NEAR(report->lambda_min(), central.lambda_min, kLambdaTolerance * central.q_norm);
+    EXPECT_EQ(fallbacks, 1);
 }
 
 /// Sends every bundle for `period` (one batch per kResend).

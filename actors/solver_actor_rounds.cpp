@@ -150,6 +150,7 @@ bool SolverActor::SyncAction(const certify::RoundAction& a) {
             state_.SetNeighbourPoses(a.neighbours);
             state_.SetOwnBlock(a.own_start);
             grad_norm_ = state_.Evaluate().grad_norm;
+            overlap_.reset();  // no sweep follows: its block solver frees before the certificate
             rounds_converged_ = true;
             local_ok_ = true;
             bundle_dirty_ = true;

@@ -16,10 +16,10 @@
 namespace certislam::bin {
 namespace {
 
-/// deploy/configs/sim2.json's settings, but every keyframe queries (like the direct pipeline's
-/// query_stride 1) with at most two candidates per robot, and registration as the pipeline's
-/// loop stage sets it (0.4 m voxels).
-actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate) {
+/// deploy/configs/sim2.json's settings, but every `query_stride`-th keyframe queries (the
+/// scenario's, as the direct pipeline's) with at most two candidates per robot, and registration
+/// as the pipeline's loop stage sets it (0.4 m voxels).
+actors::RobotNodeConfig DemoConfig(double voxel_m, int query_stride, bool distributed_certificate) {
     actors::RobotNodeConfig config;
     config.mapping = voxel_m > 0;
     if (config.mapping) config.mapper.map.tsdf.voxel_size_m = voxel_m;
@@ -30,7 +30,7 @@ actors::RobotNodeConfig DemoConfig(double voxel_m, bool distributed_certificate)
     // anchor's centralised check only as the fallback of a silent round; false: the anchor's
     // centralised check alone (`certislam demo --certificate centralised`).
     config.certifier.distributed = distributed_certificate;
-    config.matcher.query_stride = 1;
+    config.matcher.query_stride = query_stride;
     config.matcher.max_sc_distance = 0.2;
     // The two most similar places per keyframe and robot: in a tunnel one keyframe resembles a
     // whole stretch of the other robot's, and each candidate costs a GICP.
@@ -95,8 +95,9 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
 }  // namespace
 
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
-                                    double timeout_s, double voxel_m, bool distributed_certificate,
-                                    const ActorProgress& progress, const CloudMaker& make_cloud,
+                                    double timeout_s, double voxel_m, int query_stride,
+                                    bool distributed_certificate, const ActorProgress& progress,
+                                    const CloudMaker& make_cloud,
                                     const WhileMeshing& while_meshing) {
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
@@ -106,7 +107,8 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
         ids.push_back(static_cast<int>(r));
         total += robots[r].size();
     }
-    const actors::RobotNodeConfig config = DemoConfig(voxel_m, distributed_certificate);
+    const actors::RobotNodeConfig config =
+        DemoConfig(voxel_m, query_stride, distributed_certificate);
     zmq::context_t context;
     transport::ReserveSockets(context,
                               actors::InprocTeamSockets(static_cast<int>(ids.size()), true));

@@ -66,13 +66,13 @@ using WhileMeshing = std::function<void(const ActorMissionResult& graph)>;
 using CloudMaker = std::function<slam::PointCloudPtr(int robot, int index)>;
 
 /// Runs robots[k] through one RobotNode per robot over inproc until every node is done or
-/// `timeout_s` passes; every keyframe queries the loop matcher. A keyframe without a cloud gets
-/// `make_cloud`'s on the robot's own ingest thread, so the robots' scans are made in parallel
-/// and while the team works. The TSDF mappers run with voxels of `voxel_m` (0: no mapper).
-/// `while_meshing` (if set) runs once the graph is done, beside the mesh fusion, and has
+/// `timeout_s` passes; every `query_stride`-th keyframe queries the loop matcher. A keyframe
+/// without a cloud gets `make_cloud`'s on the robot's own ingest thread, so the robots' scans are
+/// made in parallel and while the team works. The TSDF mappers run with voxels of `voxel_m` (0: no
+/// mapper). `while_meshing` (if set) runs once the graph is done, beside the mesh fusion, and has
 /// returned when this does.
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
-                                    double timeout_s, double voxel_m,
+                                    double timeout_s, double voxel_m, int query_stride,
                                     bool distributed_certificate = true,
                                     const ActorProgress& progress = {},
                                     const CloudMaker& make_cloud = {},

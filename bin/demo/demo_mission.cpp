@@ -276,7 +276,8 @@ certify::MissionResult ActorPath(const DemoOptions& options, const SimulatedTeam
     // The baselines need only the finished graph: they run while robot 0's mapper meshes (the
     // bar is theirs meanwhile).
     *run = RunThroughActors(
-        team.robots, options.actors_timeout_s, options.voxel_m, options.distributed_certificate,
+        team.robots, options.actors_timeout_s, options.voxel_m, config.loops.query_stride,
+        options.distributed_certificate,
         [&](const std::string& stage, double f) { bar->Update(stage, 0.25 + 0.5 * f); },
         [generator](int robot, int index) {
             return generator->Generate(robot, index).keyframe.cloud;
@@ -307,6 +308,7 @@ DemoReport RunDemoMission(const DemoOptions& options) {
     report.timings["simulation"] = Since(start);
 
     certify::MissionConfig config;
+    config.loops.query_stride = scenario.loop_query_stride;
     if (options.ground_truth_loops) config.loops.source = slam::LoopSource::kGroundTruth;
     report.pipeline = PipelineText(actors);
     report.certified_source = actors ? "actor graph" : "pipeline";

@@ -16,6 +16,9 @@ struct SimScenario {
     std::string name;         ///< one of ScenarioNames()
     std::string description;  ///< the mission in a sentence (routes, drift, degeneracy)
     SimulatorConfig config;   ///< everything the simulator needs (seed, robots, routes, drift)
+    /// Every k-th keyframe of a robot queries the loop matcher: with denser keyframes, the same
+    /// queries per metre driven (each query costs a descriptor search and up to a GICP).
+    int loop_query_stride = 1;
 };
 
 /// The scenarios, default first: "tunnel-rendezvous", "city", "large-drift", "swarm".

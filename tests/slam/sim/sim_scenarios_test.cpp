@@ -1,7 +1,7 @@
 // The named scenarios: known names build missions of the asked size with fixed seeds, the
-// tunnel rendezvous starts robot 1 inside the tunnel, its robots and large-drift's set off half a
-// turn apart, robots start one after another, and the tunnel's odometry slip shortens the
-// along-track motion there.
+// tunnel rendezvous starts robot 1 inside the tunnel and has several hundred keyframes per robot,
+// its robots and large-drift's set off half a turn apart, robots start one after another, and the
+// tunnel's odometry slip shortens the along-track motion there.
 #include "slam/sim/sim_scenarios.h"
 
 #include <gtest/gtest.h>
@@ -43,6 +43,17 @@ TEST(SimScenarios, TunnelRendezvousStartsRobotOneInsideTheTunnel) {
     const MissionGenerator generator(s->config);
     EXPECT_TRUE(InTunnel(generator.streets(), generator.T_world_sensor_truth(1, 0).translation()));
     EXPECT_FALSE(InTunnel(generator.streets(), generator.T_world_sensor_truth(0, 0).translation()));
+}
+
+TEST(SimScenarios, TunnelRendezvousHasSeveralHundredKeyframesPerRobot) {
+    constexpr int kSeveralHundred = 200;
+    const auto s = MakeScenario("tunnel-rendezvous", 2, ScenarioDefaultSeed("tunnel-rendezvous"));
+    ASSERT_TRUE(s.has_value());
+    const MissionGenerator generator(s->config);
+    for (int r = 0; r < generator.num_robots(); ++r) {
+        EXPECT_GE(generator.num_keyframes(r), kSeveralHundred) << "robot " << r;
+    }
+    EXPECT_GE(s->loop_query_stride, 1);
 }
 
 TEST(SimScenarios, TunnelAndLargeDriftRobotsSetOffHalfATurnApart) {

@@ -183,7 +183,7 @@ void CertifierActor::Tick() {
         ++fallbacks_;
         slam::PoseGraph graph;
         Eigen::MatrixXd X;
-        if (Assemble(&graph, &X)) CheckCentrally(graph, X, v1::CERTIFICATE_PATH_FALLBACK);
+        if (Assemble(&graph, &X)) CheckCentrally(graph, X, v1::CERTIFICATE_PATH_FALLBACK, bundles_);
         return;
     }
     slam::PoseGraph graph;
@@ -198,16 +198,17 @@ void CertifierActor::Tick() {
         stalled_since_.reset();
         StartRound();
     } else {
-        CheckCentrally(graph, X, v1::CERTIFICATE_PATH_CENTRALISED);
+        CheckCentrally(graph, X, v1::CERTIFICATE_PATH_CENTRALISED, bundles_);
     }
 }
 
 void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X,
-                                    v1::CertificatePath path) {
+                                    v1::CertificatePath path,
+                                    const std::map<int, Bundle>& bundles) {
     const auto Q = slam::ConnectionLaplacian(graph);
     const auto result = certify::Certify(Q, X, 3, config_.certificate);
     ++checks_;
-    NoteVerdict(result.status == certify::CertificateResult::Status::kCertified, bundles_);
+    NoteVerdict(result.status == certify::CertificateResult::Status::kCertified, bundles);
     auto report = ToProto(result, static_cast<std::uint32_t>(X.rows()));
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     report.set_iteration(graph.edges.size());  // which graph: its edge count
@@ -215,7 +216,7 @@ void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::M
     Send(*out_, transport::Pack(report), true);
     if (result.status == certify::CertificateResult::Status::kNotOptimal &&
         level_ < config_.max_staircase_steps) {
-        Escape(Q, X, result.eigenvector, result.gradient_tolerance, bundles_);
+        Escape(Q, X, result.eigenvector, result.gradient_tolerance, bundles);
     }
 }
 
@@ -458,11 +459,11 @@ void CertifierActor::RoundFinished() {
         return;
     }
     if (decided->status == certify::CertificateResult::Status::kInconclusive &&
-        verdict.status == certify::DistributedVerdict::Status::kNotConverged) {
-        // The eigen-solve ran out of steps: at a settled iterate no changed bundle would open
+        verdict.status == certify::DistributedVerdict::Status::kNotConverged && !dirty_) {
+        // The eigen-solve ran out of steps at a settled iterate: no changed bundle will open
         // another round, so the anchor, which holds every bundle, checks this graph itself.
         ++fallbacks_;
-        CheckCentrally(graph, X, v1::CERTIFICATE_PATH_FALLBACK);
+        CheckCentrally(graph, X, v1::CERTIFICATE_PATH_FALLBACK, round_bundles_);
         return;
     }
     NoteVerdict(decided->status == certify::CertificateResult::Status::kCertified, round_bundles_);

@@ -111,8 +111,10 @@ class CertifierActor final : public NodeActor {
                   Eigen::MatrixXd* X) const {
         return AssembleBundles(bundles, Wiring().robots.size(), graph, X);
     }
+    /// The anchor's central check of `graph` at `X`, assembled from `bundles` (whose verdict it
+    /// records and which an escape splits).
     void CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X,
-                        v1::CertificatePath path);
+                        v1::CertificatePath path, const std::map<int, Bundle>& bundles);
     void Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
                 const Eigen::VectorXd& v, double gradient_tolerance,
                 const std::map<int, Bundle>& bundles);

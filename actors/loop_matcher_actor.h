@@ -42,7 +42,13 @@ struct LoopMatcherConfig {
     bool intra_robot = true;       ///< also close loops within the robot
     double max_rmse_m = 0.3;       ///< registration inlier RMSE accepting a loop, > 0
     bool reject_outliers = true;   ///< PCM over the verified loops before they are sent
-    slam::PcmConfig pcm;           ///< consistency test and clique search
+    /// Consistency test and clique search; the search runs after every verified batch, so its
+    /// budget is a tenth of the batch PCM's (the best clique so far is kept, Exact() false).
+    slam::PcmConfig pcm = [] {
+        slam::PcmConfig c;
+        c.max_branch_nodes = 5'000'000;
+        return c;
+    }();
     slam::RegistrationConfig registration;          ///< verification
     std::chrono::milliseconds request_retry{1000};  ///< cloud requests re-sent after this, > 0
     /// Keyframes that make one place for the cloud-request gate (slam/cloud_request_gate.h),

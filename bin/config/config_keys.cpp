@@ -67,7 +67,9 @@ std::vector<ConfigKey> SourceKeys() {
             "keyframes per robot at most (0: all)"),
         Str(
             "source.scenario", [](TeamConfig & c, int) -> auto& { return c.source.scenario; },
-            "named mission (city, tunnel-rendezvous, large-drift, swarm; \"\": defaults)",
+            "named mission (city, tunnel-rendezvous, large-drift, swarm; \"\": defaults): its "
+            "routes, drift and keyframe spacing (over source.keyframe_spacing_m); "
+            "matcher.query_stride stays the config's",
             "simulator"),
         Num<std::uint64_t>(
             "source.seed", [](TeamConfig & c, int) -> auto& { return c.source.simulator.seed; },

@@ -16,9 +16,9 @@
 namespace certislam::bin {
 namespace {
 
-/// deploy/configs/sim2.json's settings, but every `query_stride`-th keyframe queries (the
-/// scenario's, as the direct pipeline's) with at most two candidates per robot, and registration
-/// as the pipeline's loop stage sets it (0.4 m voxels).
+/// deploy/configs/sim2.json's settings, but every `query_stride`-th keyframe of a robot queries
+/// (the scenario's) with at most two candidates per robot, and registration as the pipeline's
+/// loop stage sets it (0.4 m voxels).
 actors::RobotNodeConfig DemoConfig(double voxel_m, int query_stride, bool distributed_certificate) {
     actors::RobotNodeConfig config;
     config.mapping = voxel_m > 0;

@@ -1,5 +1,6 @@
 // Incremental PCM: the pairwise consistency graph grows by one row per verified loop (odometry
-// never changes once known, so old pairs are not re-tested); cliques are searched afresh.
+// never changes once known, so old pairs are not re-tested); each clique search starts from the
+// group's last maximum clique (on a tie the earlier clique stays).
 #include "slam/frontend/incremental_pcm.h"
 
 #include <algorithm>

@@ -74,10 +74,10 @@ std::vector<LoopCandidate> DetectCandidates(
     std::vector<LoopCandidate> candidates;
     std::vector<PoseId> seen;
     std::vector<std::pair<float, PoseId>> nearest;
-    int query_count = 0;
     for (const Visit& visit : StampOrder(robots)) {
         const ScanContext& query = descriptors[visit.id.robot][visit.id.index];
-        if (query_count++ % config.query_stride == 0) {
+        // Every robot's every k-th keyframe, as the loop-matcher actor's stride.
+        if (visit.id.index % config.query_stride == 0) {
             nearest.clear();
             for (const PoseId& id : seen) {
                 if (id.robot == visit.id.robot &&

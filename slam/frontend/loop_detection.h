@@ -28,7 +28,7 @@ struct LoopDetectionConfig {
     double max_sc_distance = 0.2;       ///< Scan Context distance accepting a candidate, (0, 1]
     bool intra_robot = true;            ///< also look for revisits within one robot
     int min_intra_gap = 40;             ///< keyframes between an intra-robot pair, >= 1
-    int query_stride = 1;               ///< query every k-th keyframe, >= 1
+    int query_stride = 1;               ///< every robot queries every k-th keyframe, >= 1
     double max_rmse_m = 0.3;            ///< registration: accept below this inlier RMSE, > 0
     double voxel_m = 0.4;               ///< registration downsampling, > 0
     bool reject_outliers = true;        ///< pairwise consistency (PCM) over the verified loops

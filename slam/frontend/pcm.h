@@ -28,8 +28,8 @@ struct PcmConfig {
     bool check_intra_against_odometry = true;  ///< a loop within one robot must also agree
                                                ///< with that robot's odometry between a and b
     /// Clique search budget in MaximumClique's work units (a branch node and its candidates),
-    /// >= 1: a loop matcher searches after every verified batch, so it must stay short.
-    std::int64_t max_branch_nodes = 5'000'000;
+    /// >= 1 (a loop matcher, which searches after every verified batch, sets a smaller one).
+    std::int64_t max_branch_nodes = 50'000'000;
 
     /// Throws std::invalid_argument naming the field, its value and the rule.
     void Validate() const;
@@ -55,7 +55,7 @@ struct PcmResult {
     int groups = 0;                  ///< robot pairs (ra <= rb) with measurements
     int consistent_pairs = 0;        ///< edges of the consistency graphs
     int rejected_by_odometry = 0;    ///< intra-robot loops that disagree with odometry alone
-    std::int64_t branch_nodes = 0;   ///< clique-search nodes visited over all groups
+    std::int64_t branch_nodes = 0;   ///< clique-search work (MaximumClique's units), all groups
 };
 
 /// Squared Mahalanobis distance of the cycle loop i -> odometry of b -> loop j^-1 -> odometry of

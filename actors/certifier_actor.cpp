@@ -208,6 +208,10 @@ void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::M
     const auto Q = slam::ConnectionLaplacian(graph);
     const auto result = certify::Certify(Q, X, 3, config_.certificate);
     ++checks_;
+    {
+        std::lock_guard lock(verdict_mutex_);
+        certificate_ = result;
+    }
     NoteVerdict(result.status == certify::CertificateResult::Status::kCertified, bundles);
     auto report = ToProto(result, static_cast<std::uint32_t>(X.rows()));
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);

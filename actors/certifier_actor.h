@@ -89,8 +89,9 @@ class CertifierActor final : public NodeActor {
     int SettledSkips() const { return skipped_.load(); }
     /// The verdict of the last distributed round this robot finished (thread-safe).
     std::optional<certify::DistributedVerdict> LastVerdict() const;
-    /// Anchor: the certificate of the last distributed round it finished, decided by the central
-    /// rule (certify::DecideRound) on the round's graph (thread-safe).
+    /// Anchor: the certificate it last reported: a distributed round's, decided by the central
+    /// rule (certify::DecideRound) on the round's graph, or its own central check's (centralised
+    /// mode, or the fallback after a round without a verdict) (thread-safe).
     std::optional<certify::CertificateResult> LastCertificate() const;
 
   protected:

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Quick start, command 2: set up, build with warnings as errors, check formatting and
-# clang-tidy, run the whole test suite, then fuzz the untrusted decoders for a bounded time each.
+# clang-tidy (what changed since its last full run: deploy/tidy.sh), run the whole test suite,
+# then fuzz the untrusted decoders for a bounded time each.
 # Each step prints the seconds spent so far (CI has 90 minutes on 2 cores).
 # Env: FUZZ_SECONDS (default 20 per target; 0 skips), TIDY (default 1; 0 skips), BUILD_DIR.
 set -euo pipefail
@@ -27,13 +28,8 @@ step "build"
 "$root/deploy/build.sh" -DCERTISLAM_WERROR=ON -DCERTISLAM_BUILD_TESTS=ON
 
 if [ "${TIDY:-1}" != "0" ]; then
-  step "clang-tidy"
-  mapfile -t tidy_sources < <(git ls-files '*.cpp' | grep -E '^(transport|slam|certify|actors|bin)/')
-  if [ ${#tidy_sources[@]} -gt 0 ]; then
-    printf '%s\n' "${tidy_sources[@]}" |
-      xargs -P "${JOBS:-2}" -n 4 clang-tidy -p "$build" --quiet \
-        --extra-arg=-Wno-unknown-warning-option 2>/dev/null
-  fi
+  step "clang-tidy (the sources changed since .ci/tidy-base: deploy/tidy.sh)"
+  BUILD_DIR="$build" "$root/deploy/tidy.sh"
 fi
 
 python3 "$root/deploy/check_layers.py" "$build"

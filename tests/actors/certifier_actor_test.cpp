@@ -211,10 +211,10 @@ TEST_P(CertifierTeam, EveryRobotReachesTheCentralisedLambdaMin) {
 }
 
 /// The anchor's first CertificateReport as a solver hears it, with the certifiers' `config`;
-/// `fallbacks`: the anchor's Fallbacks() then.
-std::optional<v1::CertificateReport> AnchorReport(const TeamProblem& p,
-                                                  const CertifierConfig& config,
-                                                  int* fallbacks = nullptr) {
+/// `fallbacks`: the anchor's Fallbacks() then; `last`: its LastCertificate() then.
+std::optional<v1::CertificateReport> AnchorReport(
+    const TeamProblem& p, const CertifierConfig& config, int* fallbacks = nullptr,
+    std::optional<certify::CertificateResult>* last = nullptr) {
     zmq::context_t context;
     const int robots = p.partition.num_robots();
     std::vector<std::unique_ptr<CertifierActor>> certifiers;
@@ -237,6 +237,7 @@ std::optional<v1::CertificateReport> AnchorReport(const TeamProblem& p,
         }
     }
     if (fallbacks) *fallbacks = certifiers.front()->Fallbacks();
+    if (last) *last = certifiers.front()->LastCertificate();
     for (auto& c : certifiers) c->Stop();
     return report;
 }
@@ -284,12 +285,17 @@ TEST(CertifierFallback, ARoundWhoseEigenSolveRanOutOfStepsIsCheckedCentrallyAtOn
     config.lanczos.lobpcg.max_iterations = 1;
     config.round_timeout = std::chrono::milliseconds(60000);  // not the silent-round fallback
     int fallbacks = 0;
-    const auto report = AnchorReport(p, config, &fallbacks);
+    std::optional<certify::CertificateResult> last;
+    const auto report = AnchorReport(p, config, &fallbacks, &last);
     ASSERT_TRUE(report.has_value()) << "no report: the team would wait for its timeout";
     EXPECT_EQ(report->path(), v1::CERTIFICATE_PATH_FALLBACK);
     EXPECT_EQ(report->verdict(), v1::CERTIFICATE_VERDICT_NOT_CERTIFIED);
     EXPECT_NEAR(report->lambda_min(), central.lambda_min, kLambdaTolerance * central.q_norm);
     EXPECT_EQ(fallbacks, 1);
+    // The anchor's last certificate is the one it reported, not the inconclusive round's.
+    ASSERT_TRUE(last.has_value());
+    EXPECT_EQ(last->status, certify::CertificateResult::Status::kNotOptimal);
+    EXPECT_NEAR(last->lambda_min, report->lambda_min(), kAgree * central.q_norm);
 }
 
 /// Sends every bundle for `period` (one batch per kResend).

@@ -452,7 +452,6 @@ void CertifierActor::RoundFinished() {
     {
         std::lock_guard lock(verdict_mutex_);
         verdict_ = verdict;
-        if (decided) certificate_ = decided;
     }
     ++rounds_;
     ++checks_;
@@ -469,6 +468,10 @@ void CertifierActor::RoundFinished() {
         ++fallbacks_;
         CheckCentrally(graph, X, v1::CERTIFICATE_PATH_FALLBACK, round_bundles_);
         return;
+    }
+    {
+        std::lock_guard lock(verdict_mutex_);
+        certificate_ = decided;
     }
     NoteVerdict(decided->status == certify::CertificateResult::Status::kCertified, round_bundles_);
     auto report = ToProto(*decided, round_rank_);

@@ -154,7 +154,7 @@ class CertifierActor final : public NodeActor {
     std::atomic<std::uint64_t> bundle_bytes_{0};
     mutable std::mutex verdict_mutex_;
     std::optional<certify::DistributedVerdict> verdict_;
-    std::optional<certify::CertificateResult> certificate_;  ///< anchor: decided from verdict_
+    std::optional<certify::CertificateResult> certificate_;  ///< anchor: the last one reported
     bool dirty_ = false;
     /// anchor: the bundles of the last verdict when it was certified (empty otherwise)
     std::map<int, Bundle> certified_bundles_;

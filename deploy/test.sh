@@ -32,6 +32,7 @@ if [ "${TIDY:-1}" != "0" ]; then
   BUILD_DIR="$build" "$root/deploy/tidy.sh"
 fi
 
+step "layers of the built targets' link edges"
 python3 "$root/deploy/check_layers.py" "$build"
 
 step "tests"

@@ -14,7 +14,7 @@ namespace {
 constexpr int kKeyframes = 12;
 
 /// A descriptor whose only non-empty ring is `ring`: two of them match (distance 0) when their
-/// rings are equal and share no non-empty column pair otherwise (distance 1).
+/// rings are equal; otherwise every column of one is orthogonal to the other's (distance 1).
 ScanContext RingDescriptor(int ring, const ScanContextConfig& config) {
     ScanContext sc;
     sc.bins = ScanContextMatrix::Zero(config.num_rings, config.num_sectors);

@@ -23,7 +23,8 @@ else
     exit 0
   fi
   if ! git diff --quiet "$base" -- .clang-tidy; then
-    echo "tidy.sh: .clang-tidy changed since the base: a check it adds needs deploy/tidy.sh --all" >&2
+    echo "tidy.sh: .clang-tidy changed since the base: a check it adds needs" \
+      "deploy/tidy.sh --all" >&2
   fi
   # Against the working tree: the same as HEAD in a clean clone, and a developer's edits too.
   mapfile -t changed < <(git diff --name-only "$base" -- | grep -E "$dirs|^proto/" || true)

@@ -13,6 +13,9 @@ namespace {
 
 constexpr int kKeyframes = 12;
 
+/// (query, match) candidates as ((robot, index), (robot, index)).
+using CandidatePairs = std::set<std::pair<std::pair<int, int>, std::pair<int, int>>>;
+
 /// A descriptor whose only non-empty ring is `ring`: two of them match (distance 0) when their
 /// rings are equal; otherwise every column of one is orthogonal to the other's (distance 1).
 ScanContext RingDescriptor(int ring, const ScanContextConfig& config) {
@@ -49,10 +52,8 @@ TwoRobots AlternatingRobots(const ScanContextConfig& config) {
     return team;
 }
 
-/// The (query, match) pairs as (robot, index) tuples.
-std::set<std::pair<std::pair<int, int>, std::pair<int, int>>> Pairs(
-    const std::vector<LoopCandidate>& candidates) {
-    std::set<std::pair<std::pair<int, int>, std::pair<int, int>>> pairs;
+CandidatePairs Pairs(const std::vector<LoopCandidate>& candidates) {
+    CandidatePairs pairs;
     for (const auto& c : candidates) {
         pairs.insert({{c.query.robot, c.query.index}, {c.match.robot, c.match.index}});
     }
@@ -80,7 +81,7 @@ TEST(DetectCandidates, TheStrideCountsEachRobotsOwnKeyframesNotTheTeamsVisits) {
     const TwoRobots team = AlternatingRobots(config.scan_context);
     // Robot 1's keyframes 0, 3, 6 and 9 query; a stride over the team's stamp order would pick
     // robot 1's keyframes 1, 4, 7 and 10 (visits 3, 9, 15, 21) instead.
-    std::set<std::pair<std::pair<int, int>, std::pair<int, int>>> expected;
+    CandidatePairs expected;
     for (int i = 0; i < kKeyframes; i += 3) expected.insert({{1, i}, {0, i}});
     EXPECT_EQ(Pairs(DetectCandidates(team.descriptors, team.robots, config)), expected);
 }
@@ -95,8 +96,7 @@ TEST(DetectCandidates, IntraRobotPairsNeedTheMinimumGap) {
     team.descriptors[0][4] = RingDescriptor(0, config.scan_context);
     team.descriptors[0][5] = RingDescriptor(0, config.scan_context);
     const auto pairs = Pairs(DetectCandidates(team.descriptors, team.robots, config));
-    using Pair = std::pair<std::pair<int, int>, std::pair<int, int>>;
-    EXPECT_EQ(pairs, (std::set<Pair>{{{0, 5}, {0, 0}}}));
+    EXPECT_EQ(pairs, (CandidatePairs{{{0, 5}, {0, 0}}}));
 }
 
 }  // namespace

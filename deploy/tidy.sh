@@ -16,6 +16,10 @@ dirs='^(transport|slam|certify|actors|bin)/'
 if [ "${1:-}" = "--all" ]; then
   mapfile -t files < <(git ls-files '*.cpp' | grep -E "$dirs")
 else
+  if [ -n "${1:-}" ] && ! git cat-file -e "$1^{commit}" 2>/dev/null; then
+    echo "tidy.sh: '$1' is not a commit of this repository (usage: tidy.sh [--all | BASE])" >&2
+    exit 2
+  fi
   base="${1:-$(cat "$root/.ci/tidy-base")}"
   if ! git cat-file -e "$base^{commit}" 2>/dev/null; then
     echo "tidy.sh: WARNING: base commit '$base' is not in this clone (shallow?): nothing was" \

@@ -28,6 +28,7 @@ PoseGraphTeamResult SummariseNodes(const std::vector<const PoseGraphNode*>& node
             out.bytes_between_robots += bytes;
         }
         out.escapes += node->Certifier().Escapes();
+        out.rejected_proposals += s.rejected_proposals;
         for (const auto& pose : s.trajectory) {
             const Eigen::Isometry3d& T = pose.T_world_body;
             out.out_of_plane_m = std::max(out.out_of_plane_m, std::abs(T.translation().z()));

@@ -39,6 +39,8 @@ struct PoseGraphTeamResult {
     /// robot gave up its rounds (or never ran them) and went on with asynchronous updates.
     std::string solver_mode = "asynchronous";
     int restarts = 0;   ///< adaptive restarts of the rounds (robot 0's count)
+    /// Overlapping sweeps' proposals the robots dropped (summed; SolverSnapshot)
+    std::uint64_t rejected_proposals = 0;
     int fallbacks = 0;  ///< certificate rounds the anchor checked centrally instead
     /// How far the poses leave the plane z = 0 (a planar graph's lift, slam::LiftPlanar): the
     /// largest |z| and the largest tilt of a pose's z axis

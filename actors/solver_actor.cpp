@@ -208,6 +208,8 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
 void SolverActor::Changed() {
     tolerance_scale_ = 1.0;  // a new graph: the configured tolerance again
     overlap_.reset();        // its domain is of the old graph
+    boundary_.reset();
+    if (rounds_) rounds_->SetProposable(Boundary().proposable);
     refined_ = false;
     if (restored_) report_.reset();  // the checkpoint's report is of the graph before this change
     restored_ = false;
@@ -397,6 +399,7 @@ void SolverActor::UpdateSnapshot() {
     s.edges = state_.OwnEdges();
     s.team_rounds = rounds_swept_;
     s.restarts = rounds_restarts_ + (rounds_ ? rounds_->Restarts() : 0);
+    s.rejected_proposals = rounds_rejected_ + (rounds_ ? rounds_->RejectedProposals() : 0);
     s.rounds_converged = rounds_converged_;
     s.rounds_gave_up = rounds_gave_up_;
     s.restored = restored_;

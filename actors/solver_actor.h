@@ -82,6 +82,9 @@ struct SolverSnapshot {
     std::vector<slam::LoopClosure> edges;
     std::uint64_t team_rounds = 0;  ///< synchronous rounds swept (SolverActorConfig::synchronous)
     int restarts = 0;               ///< adaptive restarts of those rounds
+    /// Overlapping sweeps' proposals of own poses dropped (TeamRounds::SetProposable): a
+    /// neighbour proposed a pose its domain cannot hold, or a block that is not a pose
+    std::uint64_t rejected_proposals = 0;
     bool rounds_converged = false;  ///< the rounds reached the team's gradient tolerance
     bool rounds_gave_up = false;    ///< the rounds hit max_rounds: asynchronous updates took over
     /// The certified state came from the durable log's checkpoint (a restart after the team
@@ -128,6 +131,10 @@ class SolverActor final : public NodeActor {
     bool InSession(int robot, std::uint64_t session, std::uint64_t incarnation);
     void NewSession(std::uint64_t session);
     void StartRounds();
+    /// Ends rounds_ (their counts kept) and its overlapping sweep.
+    void DropRounds();
+    /// The own poses near the neighbours (certify::BoundaryOf), kept until the graph changes.
+    const certify::RoundBoundary& Boundary();
     template <typename Proto>
     void StampSession(Proto* proto) const {
         proto->set_round_session(round_session_);
@@ -194,6 +201,8 @@ class SolverActor final : public NodeActor {
     bool rounds_gave_up_ = false;
     std::uint64_t rounds_swept_ = 0;                 ///< over every level
     int rounds_restarts_ = 0;                        ///< over every level
+    std::uint64_t rounds_rejected_ = 0;              ///< proposals dropped, over every level
+    std::optional<certify::RoundBoundary> boundary_;  ///< Boundary(), of the current graph
     std::vector<certify::PoseBlocks> early_poses_;   ///< round poses heard before rounds_ began
     std::vector<v1::SolverStatus> early_sums_;       ///< round sums heard before rounds_ began
     std::vector<v1::PublicPoses> last_round_poses_;  ///< last two rounds', re-sent on a stall

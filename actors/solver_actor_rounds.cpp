@@ -32,8 +32,8 @@ bool SolverActor::InRounds() const {
 }
 
 void SolverActor::SendRoundPoses(std::uint64_t round) {
-    certify::PoseBlocks poses = certify::RoundPoses(state_, config_.rounds.overlap_depth, round,
-                                                    steps_, overlap_ ? &*overlap_ : nullptr);
+    certify::PoseBlocks poses =
+        certify::RoundPoses(state_, Boundary(), round, steps_, overlap_ ? &*overlap_ : nullptr);
     poses.team_round = round + 1;
     poses.sweep_color = rounds_->SweepColor();
     auto proto = ToProto(poses);
@@ -103,9 +103,7 @@ void SolverActor::NewSession(std::uint64_t session) {
     last_round_sums_.clear();
     last_round_progress_ = std::chrono::steady_clock::now();
     if (!rounds_ && !restored_ && !rounds_gave_up_) return;  // no rounds begun yet
-    if (rounds_) rounds_restarts_ += rounds_->Restarts();
-    rounds_.reset();
-    overlap_.reset();
+    DropRounds();
     chordal_started_ = true;  // a restored block is kept too
     rounds_converged_ = false;
     rounds_gave_up_ = false;
@@ -185,9 +183,7 @@ void SolverActor::SyncTick() {
         return;
     }
     if (rounds_ && rounds_level_ != state_.StaircaseLevel()) {
-        rounds_restarts_ += rounds_->Restarts();
-        rounds_.reset();  // a saddle escape: new rounds from the adopted block
-        overlap_.reset();
+        DropRounds();  // a saddle escape: new rounds from the adopted block
         rounds_converged_ = false;
         local_ok_ = false;
     }
@@ -213,6 +209,7 @@ void SolverActor::StartRounds() {
     const auto nbrs = state_.Neighbours();
     rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()),
                     config_.rounds);
+    rounds_->SetProposable(Boundary().proposable);
     overlap_.reset();
     rounds_level_ = state_.StaircaseLevel();
     local_ok_ = false;  // an asynchronous phase's convergence says nothing of the rounds
@@ -229,6 +226,20 @@ void SolverActor::StartRounds() {
     early_sums_.clear();
     for (const auto& s : sums) OnRoundSums(s);
     last_round_progress_ = std::chrono::steady_clock::now();
+}
+
+void SolverActor::DropRounds() {
+    if (rounds_) {
+        rounds_restarts_ += rounds_->Restarts();
+        rounds_rejected_ += rounds_->RejectedProposals();
+    }
+    rounds_.reset();
+    overlap_.reset();
+}
+
+const certify::RoundBoundary& SolverActor::Boundary() {
+    if (!boundary_) boundary_ = certify::BoundaryOf(state_, config_.rounds.overlap_depth);
+    return *boundary_;
 }
 
 }  // namespace certislam::actors

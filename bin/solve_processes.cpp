@@ -268,6 +268,7 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
         }
         r.seconds = std::max(r.seconds, Field<double>(j, "seconds", robot));
         r.escapes += Field<int>(j, "escapes", robot);
+        r.rejected_proposals += Field<std::uint64_t>(j, "rejected_proposals", robot);
         sync = sync && Field<std::string>(j, "solver_mode", robot) == "synchronous";
         const auto plane = Field<nlohmann::json>(j, "out_of_plane", robot);
         r.out_of_plane_m = std::max(r.out_of_plane_m, plane.value("m", 0.0));

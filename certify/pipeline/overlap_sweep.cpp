@@ -153,9 +153,10 @@ std::vector<slam::LoopClosure> EdgesTouching(const SolverState& me) {
     return out;
 }
 
-PoseBlocks RoundPoses(const SolverState& me, int depth, std::uint64_t round,
-                      std::uint64_t iteration, const OverlapSweep* sweep) {
-    if (depth == 0) return me.PublicPoses(iteration);
+RoundBoundary BoundaryOf(const SolverState& me, int depth) {
+    RoundBoundary out;
+    out.depth = depth;
+    if (depth == 0) return out;
     const std::vector<slam::LoopClosure> edges = EdgesTouching(me);
     Adjacency own;  // through own poses only
     std::set<slam::PoseId> ends;
@@ -168,41 +169,48 @@ PoseBlocks RoundPoses(const SolverState& me, int depth, std::uint64_t round,
         }
     }
     const auto any = [](const slam::PoseId&) { return true; };
-    std::set<slam::PoseId> near = Reach(own, ends, depth, any);  // within depth of the ends
-    near.insert(ends.begin(), ends.end());
-    near.insert({me.robot(), 0});  // the anchor, as PublicPoses
+    std::set<slam::PoseId> sent = Reach(own, ends, depth, any);
+    sent.insert(ends.begin(), ends.end());
+    sent.insert({me.robot(), 0});  // the anchor, as PublicPoses
+    for (const auto& id : sent) {
+        if (id.index >= 0 && id.index < me.NumPoses()) out.sent.push_back(id);
+    }
+    std::set<slam::PoseId> reachable = Reach(own, ends, depth - 1, any);
+    reachable.insert(ends.begin(), ends.end());
+    for (const auto& id : reachable) out.proposable.insert(id.index);
+    for (const auto& e : edges) {
+        if (reachable.count(e.a) || reachable.count(e.b)) out.edges.push_back(e);
+    }
+    return out;
+}
+
+PoseBlocks RoundPoses(const SolverState& me, const RoundBoundary& boundary, std::uint64_t round,
+                      std::uint64_t iteration, const OverlapSweep* sweep) {
+    if (boundary.depth == 0) return me.PublicPoses(iteration);
     const PoseBlocks full = me.FullBlock(iteration);
     PoseBlocks out;
     out.iteration = iteration;
     out.staircase_level = full.staircase_level;
     const PoseBlocks* proposals = sweep != nullptr ? &sweep->Proposals() : nullptr;
-    const Eigen::Index extra = proposals != nullptr ? proposals->blocks.cols() : 0;
-    out.blocks.resize(full.blocks.rows(), kBlock * Eigen::Index(near.size()) + extra);
+    const Eigen::Index extra =
+        proposals != nullptr && proposals->blocks.rows() == full.blocks.rows()
+            ? proposals->blocks.cols()
+            : 0;
+    out.blocks.resize(full.blocks.rows(), kBlock * Eigen::Index(boundary.sent.size()) + extra);
     Eigen::Index c = 0;
-    for (const auto& id : near) {
-        if (id.index < 0 || id.index >= me.NumPoses()) continue;
+    for (const auto& id : boundary.sent) {
+        if (id.index >= me.NumPoses()) continue;  // a boundary of a larger graph
         out.ids.push_back(id);
         out.blocks.middleCols(c, kBlock) = full.blocks.middleCols(kBlock * id.index, kBlock);
         c += kBlock;
     }
-    if (extra > 0 && proposals->blocks.rows() == out.blocks.rows()) {
+    if (extra > 0) {
         out.ids.insert(out.ids.end(), proposals->ids.begin(), proposals->ids.end());
         out.blocks.middleCols(c, extra) = proposals->blocks;
         c += extra;
     }
     out.blocks.conservativeResize(Eigen::NoChange, c);
-    if (round == 0) {  // the edges of the poses a neighbour's domain may take: within depth - 1
-        const std::set<slam::PoseId> inner =
-            depth > 1 ? Reach(own, ends, depth - 1, any) : std::set<slam::PoseId>{};
-        for (const auto& e : edges) {
-            const slam::PoseId& mine = e.a.robot == me.robot() ? e.a : e.b;
-            const slam::PoseId& other = e.a.robot == me.robot() ? e.b : e.a;
-            if (ends.count(mine) || inner.count(mine) ||
-                (other.robot == me.robot() && (ends.count(other) || inner.count(other)))) {
-                out.edges.push_back(e);
-            }
-        }
-    }
+    if (round == 0) out.edges = boundary.edges;
     return out;
 }
 

@@ -64,11 +64,29 @@ std::set<slam::PoseId> OverlapDomain(int robot, const std::vector<slam::LoopClos
 /// Every edge touching `me`'s poses, each once (odometry and loops).
 std::vector<slam::LoopClosure> EdgesTouching(const SolverState& me);
 
-/// What robot `me` sends after its placement or sweep of `round` in rounds of overlap `depth`:
-/// depth 0, its public poses; otherwise its poses within `depth` edges of its neighbours' (what
-/// their domains read, pose 0 always), with the edges touching those within depth - 1 at round 0
-/// (their domains' edges) and the proposals of `sweep` after an overlapping sweep.
-PoseBlocks RoundPoses(const SolverState& me, int depth, std::uint64_t round,
+/// Robot `me`'s poses near its neighbours in rounds of overlap `depth`, from its graph alone
+/// (fixed while the graph is: the caller keeps it until the graph changes). An "end" is an own
+/// pose with an edge to another robot; a neighbour's domain enters the own block only there.
+struct RoundBoundary {
+    int depth = 0;
+    /// The own poses sent each round, ascending: within `depth` own edges of an end (what the
+    /// neighbours' domains read, held fixed or optimised) and pose 0. Empty at depth 0.
+    std::vector<slam::PoseId> sent;
+    /// Own pose indices within depth - 1 own edges of an end: every own pose a neighbour's
+    /// domain can hold (a path of at most `depth` edges enters through an end), so every one an
+    /// earlier neighbour may propose (TeamRounds::SetProposable). Empty at depth 0.
+    std::set<int> proposable;
+    /// Sent with the round-0 poses: the edges touching a proposable pose (its domain's edges).
+    std::vector<slam::LoopClosure> edges;
+};
+
+/// The boundary of `me`'s current graph for overlap `depth` (>= 0).
+RoundBoundary BoundaryOf(const SolverState& me, int depth);
+
+/// What robot `me` sends after its placement or sweep of `round`, `boundary` being its
+/// BoundaryOf: depth 0, its public poses; otherwise the boundary's sent poses, its edges at
+/// round 0 and the proposals of `sweep` after an overlapping sweep.
+PoseBlocks RoundPoses(const SolverState& me, const RoundBoundary& boundary, std::uint64_t round,
                       std::uint64_t iteration, const OverlapSweep* sweep);
 
 /// Robot `me`'s sweep of round action `a` (kSweep): an overlapping one of `depth` whose domain

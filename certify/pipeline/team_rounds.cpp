@@ -26,6 +26,19 @@ Eigen::MatrixXd Extrapolate(const Eigen::MatrixXd& X_a, const Eigen::MatrixXd& X
     return slam::ProjectToManifold(X_a + beta * (X_a - X_b), kDimension);
 }
 
+/// True when block k of `blocks` is finite and its rotation part is on St(d, r): a pose of the
+/// lifted manifold, which a sweep may start from.
+bool IsLiftedPose(const Eigen::MatrixXd& blocks, Eigen::Index k) {
+    constexpr double kOrthonormalTol = 1e-6;
+    if (blocks.cols() < kBlock * (k + 1) || blocks.rows() < kDimension) return false;
+    const auto pose = blocks.middleCols(kBlock * k, kBlock);
+    if (!pose.allFinite()) return false;
+    const Eigen::MatrixXd Y = pose.leftCols(kDimension);
+    return (Y.transpose() * Y - Eigen::MatrixXd::Identity(kDimension, kDimension))
+               .cwiseAbs()
+               .maxCoeff() <= kOrthonormalTol;
+}
+
 /// The poses of `sender` in its message `p` (ids and blocks), without its proposals for others.
 std::pair<std::vector<slam::PoseId>, Eigen::MatrixXd> SendersOwn(const PoseBlocks& p, int sender) {
     std::pair<std::vector<slam::PoseId>, Eigen::MatrixXd> out;
@@ -153,7 +166,7 @@ PoseBlocks TeamRounds::NeighbourPoses(std::uint64_t round, bool extrapolate_high
     return out;
 }
 
-void TeamRounds::ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start) const {
+void TeamRounds::ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start) {
     // In sweep order: a pose two earlier neighbours proposed takes the later sweeper's proposal.
     std::vector<std::pair<int, int>> earlier;  // (colour, robot)
     for (int j : neighbours_) {
@@ -164,9 +177,11 @@ void TeamRounds::ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start)
         const auto& p = nbr_.at(j).at(round);  // HaveNeighbours: an earlier one's poses are in
         for (size_t k = 0; k < p.ids.size(); ++k) {
             const slam::PoseId& id = p.ids[k];
-            if (id.robot != robot_ || id.index < 0 ||
+            if (id.robot != robot_) continue;  // the sender's own poses or another robot's
+            if (!proposable_.count(id.index) ||
                 kBlock * Eigen::Index(id.index + 1) > own_start->cols() ||
-                p.blocks.rows() != own_start->rows()) {
+                p.blocks.rows() != own_start->rows() || !IsLiftedPose(p.blocks, Eigen::Index(k))) {
+                ++rejected_;
                 continue;
             }
             own_start->middleCols(kBlock * Eigen::Index(id.index), kBlock) =

@@ -11,6 +11,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <utility>
 #include <vector>
 
 #include "certify/pipeline/solver_state.h"
@@ -88,6 +89,14 @@ class TeamRounds {
     /// Neighbours that sweep after this robot in every round from 1 on (known once placed): the
     /// robots whose poses an overlapping sweep may propose (OverlapSweep).
     std::set<int> LaterNeighbours() const;
+    /// The own pose indices an earlier neighbour's overlapping sweep may propose (its domain's
+    /// reach into this robot: RoundBoundary::proposable). A proposal of another own pose, of one
+    /// outside the block, of another rank, or whose block is not a finite pose of the lifted
+    /// manifold is dropped and counted (RejectedProposals) when the sweep it was for starts.
+    /// Until set, none is taken.
+    void SetProposable(std::set<int> indices) { proposable_ = std::move(indices); }
+    /// Proposals dropped so far (SetProposable).
+    std::uint64_t RejectedProposals() const { return rejected_; }
     /// The edges the neighbours sent with their round-0 poses (PoseBlocks::edges; the first
     /// heard from each stays): what an overlapping sweep's domain needs beyond the own edges.
     std::vector<slam::LoopClosure> NeighbourEdges() const;
@@ -99,8 +108,8 @@ class TeamRounds {
     bool HaveNeighbours(std::uint64_t round, bool lower_only) const;
     /// Own poses that an earlier neighbour's overlapping sweep of `round` proposed replace those
     /// of the start (multiplicative Schwarz: the sweep goes on from them); of two proposals of
-    /// one pose, the later sweeper's.
-    void ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start) const;
+    /// one pose, the later sweeper's. Only poses in proposable_ (the others are counted).
+    void ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start);
     PoseBlocks NeighbourPoses(std::uint64_t round, bool extrapolate_higher) const;
     void Decide();
     void Prune();
@@ -115,6 +124,8 @@ class TeamRounds {
     std::map<int, std::map<std::uint64_t, PoseBlocks>> nbr_;
     std::map<int, int> colors_;  ///< neighbours' sweep colours, from their round-0 poses
     std::map<int, std::vector<slam::LoopClosure>> edges_;  ///< neighbours' round-0 edges
+    std::set<int> proposable_;   ///< own poses a neighbour may propose (SetProposable)
+    std::uint64_t rejected_ = 0;  ///< proposals dropped
     int color_ = 0;  ///< own sweep colour (set with the round-0 placement)
     std::map<std::uint64_t, std::map<int, std::pair<double, double>>> sums_;
     std::uint64_t current_ = 0;        ///< the round in progress (0: start)

@@ -19,6 +19,7 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
     InMemoryTeam team;
     std::vector<TeamRounds> schedule;
     std::vector<std::optional<OverlapSweep>> overlapping(graphs.size());
+    std::vector<RoundBoundary> boundaries;
     for (const auto& g : graphs) {
         SolverState state(g.robot, solver);
         for (size_t k = 0; k < g.initial.size(); ++k) state.AddKeyframe(int(k), g.initial[k]);
@@ -28,6 +29,8 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
         state.LocalChordalStart();
         const auto nbrs = state.Neighbours();
         schedule.emplace_back(g.robot, ids, std::set<int>(nbrs.begin(), nbrs.end()), rounds);
+        boundaries.push_back(BoundaryOf(state, rounds.overlap_depth));
+        schedule.back().SetProposable(boundaries.back().proposable);
         team.robots.push_back(std::move(state));
     }
     using K = RoundAction::Kind;
@@ -60,7 +63,7 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
                     }
                     schedule[i].SweepDone(a.round, me.FullBlock(0).blocks);
                     const OverlapSweep* sweep = overlapping[i] ? &*overlapping[i] : nullptr;
-                    PoseBlocks poses = RoundPoses(me, rounds.overlap_depth, a.round, 0, sweep);
+                    PoseBlocks poses = RoundPoses(me, boundaries[i], a.round, 0, sweep);
                     poses.sweep_color = schedule[i].SweepColor();
                     for (auto& peer : schedule) peer.OnPoses(me.robot(), a.round, poses);
                 }
@@ -71,6 +74,7 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
         team.converged.push_back(ended[i] == K::kConverged);
         team.rounds.push_back(schedule[i].Rounds());
         team.restarts.push_back(schedule[i].Restarts());
+        team.rejected_proposals.push_back(schedule[i].RejectedProposals());
     }
     return team;
 }

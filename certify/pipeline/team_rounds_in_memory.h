@@ -18,6 +18,7 @@ struct InMemoryTeam {
     std::vector<bool> converged;        ///< per robot: reached kConverged (false: gave up)
     std::vector<std::uint64_t> rounds;  ///< per robot: rounds swept
     std::vector<int> restarts;          ///< per robot: adaptive restarts
+    std::vector<std::uint64_t> rejected_proposals;  ///< per robot: TeamRounds::RejectedProposals
 
     /// True when every robot converged.
     bool AllConverged() const;

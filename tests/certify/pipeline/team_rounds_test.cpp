@@ -7,10 +7,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <map>
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "slam/core/graph_split.h"
@@ -213,26 +215,78 @@ TEST(TeamRounds, ColoursFollowIdsOnAChainNumberedOutOfOrder) {
     EXPECT_EQ(t[3].Next().kind, K::kSweep);
 }
 
+// A pose of the lifted manifold at rank 5: rotation columns orthonormal, translation t.
+Eigen::MatrixXd LiftedPose(double t) {
+    Eigen::MatrixXd pose = Eigen::MatrixXd::Zero(5, 4);
+    pose.topLeftCorner(3, 3).setIdentity();
+    pose.col(3).setConstant(t);
+    return pose;
+}
+
+// Robot 0's round-1 message: its own pose 0/0 and proposals (pose index, block) for robot 1.
+PoseBlocks WithProposals(const std::vector<std::pair<int, Eigen::MatrixXd>>& proposals) {
+    PoseBlocks poses;
+    poses.ids = {{0, 0}};
+    poses.blocks.resize(5, 4 * Eigen::Index(1 + proposals.size()));
+    poses.blocks.leftCols(4) = HandTeam::Block(0, 1);
+    for (size_t k = 0; k < proposals.size(); ++k) {
+        poses.ids.push_back({1, proposals[k].first});
+        poses.blocks.middleCols(4 * Eigen::Index(k + 1), 4) = proposals[k].second;
+    }
+    return poses;
+}
+
 // An overlapping sweep of robot 0 proposes a pose of robot 1, which sweeps after it: robot 1's
 // round starts from the proposal, and the proposal is not among the neighbours' poses it reads.
 TEST(TeamRounds, ALaterRobotStartsFromTheProposalOfAnEarlierOne) {
     HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
+    t[1].SetProposable({0});
     t.Place();
     t.Sweep(2, 1);
     t[0].SweepDone(1, HandTeam::Block(0, 1));
-    PoseBlocks poses;
-    poses.ids = {{0, 0}, {1, 0}};
-    poses.blocks.resize(5, 8);
-    poses.blocks << HandTeam::Block(0, 1), Eigen::MatrixXd::Constant(5, 4, 7.0);
-    t[1].OnPoses(0, 1, poses);
+    t[1].OnPoses(0, 1, WithProposals({{0, LiftedPose(7.0)}}));
     const RoundAction middle = t[1].Next();
     ASSERT_EQ(middle.kind, RoundAction::Kind::kSweep);
-    EXPECT_EQ(middle.own_start, Eigen::MatrixXd::Constant(5, 4, 7.0));
+    EXPECT_EQ(middle.own_start, LiftedPose(7.0));
+    EXPECT_EQ(t[1].RejectedProposals(), 0u);
     const std::vector<slam::PoseId> read{{0, 0}, {2, 0}};
     EXPECT_EQ(middle.neighbours.ids, read);
     Eigen::MatrixXd both(5, 8);
     both << HandTeam::Block(0, 1), HandTeam::Block(2, 1);
     EXPECT_EQ(middle.neighbours.blocks, both);
+}
+
+// A neighbour's proposals are untrusted: one of a pose its domain cannot hold (not proposable),
+// of a pose beyond the block, a block with a NaN, or one whose rotation is not orthonormal is
+// dropped and counted, and the sweep starts from the robot's own block.
+TEST(TeamRounds, ProposalsOutsideTheReachOrNotPosesAreDroppedAndCounted) {
+    HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
+    t[1].SetProposable({0, 3});  // pose 3 is in the set but beyond robot 1's one-pose block
+    t.Place();
+    t.Sweep(2, 1);
+    t[0].SweepDone(1, HandTeam::Block(0, 1));
+    Eigen::MatrixXd nan = LiftedPose(7.0), skew = LiftedPose(7.0);
+    nan(4, 3) = std::nan("");
+    skew(0, 1) = 0.5;
+    t[1].OnPoses(0, 1,
+                 WithProposals({{1, LiftedPose(7.0)}, {3, LiftedPose(7.0)}, {0, nan}, {0, skew}}));
+    const RoundAction middle = t[1].Next();
+    ASSERT_EQ(middle.kind, RoundAction::Kind::kSweep);
+    EXPECT_EQ(middle.own_start, HandTeam::Block(1, 0));
+    EXPECT_EQ(t[1].RejectedProposals(), 4u);
+}
+
+// Until the robot says which poses a neighbour may propose, it takes none.
+TEST(TeamRounds, NoProposalIsTakenBeforeTheProposablePosesAreSet) {
+    HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
+    t.Place();
+    t.Sweep(2, 1);
+    t[0].SweepDone(1, HandTeam::Block(0, 1));
+    t[1].OnPoses(0, 1, WithProposals({{0, LiftedPose(7.0)}}));
+    const RoundAction middle = t[1].Next();
+    ASSERT_EQ(middle.kind, RoundAction::Kind::kSweep);
+    EXPECT_EQ(middle.own_start, HandTeam::Block(1, 0));
+    EXPECT_EQ(t[1].RejectedProposals(), 1u);
 }
 
 // Two robots on smallGrid3D: overlapping sweeps of depth 4 reach the same optimum in far fewer
@@ -246,6 +300,8 @@ TEST(TeamRounds, OverlappingSweepsReachTheOptimumInFewerRounds) {
     ASSERT_TRUE(plain.AllConverged());
     ASSERT_TRUE(fast.AllConverged());
     EXPECT_EQ(fast.rounds[0], fast.rounds[1]);
+    // Honest robots propose only poses within the receiver's reach (RoundBoundary::proposable).
+    EXPECT_EQ(fast.rejected_proposals, std::vector<std::uint64_t>(2, 0));
     EXPECT_LE(2 * fast.rounds[0], plain.rounds[0]);
     EXPECT_NEAR(Cost(&fast), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
 }

@@ -217,6 +217,10 @@ PoseBlocks RoundPoses(const SolverState& me, const RoundBoundary& boundary, std:
 double SweepRound(const RoundAction& a, int depth, const slam::RbcdConfig& rbcd,
                   const TeamRounds& rounds, SolverState* me, std::optional<OverlapSweep>* sweep) {
     me->SetOwnBlock(a.own_start);
+    if (!a.overlap) {
+        sweep->reset();  // own poses from here on (TeamRounds::Overlapping): no proposals
+        return me->StepTo(a.block_tol).grad_norm;
+    }
     if (depth > 0 && !*sweep) {  // from round 1: the colours and the neighbours' edges are in
         std::vector<slam::LoopClosure> edges = EdgesTouching(*me);
         // An edge between two neighbours comes from both; a sender's own edges only from it

@@ -92,7 +92,8 @@ PoseBlocks RoundPoses(const SolverState& me, const RoundBoundary& boundary, std:
 /// Robot `me`'s sweep of round action `a` (kSweep): an overlapping one of `depth` whose domain
 /// (built at the first sweep into `*sweep`, from its own edges and those its neighbours sent) is
 /// not empty, otherwise RBCD's block update (also from the first domain pose no neighbour sent
-/// on). Returns the block gradient norm after it.
+/// on). With `a.overlap` false, RBCD's block update, and `*sweep` is freed (no more proposals).
+/// Returns the block gradient norm after it.
 double SweepRound(const RoundAction& a, int depth, const slam::RbcdConfig& rbcd,
                   const TeamRounds& rounds, SolverState* me, std::optional<OverlapSweep>* sweep);
 

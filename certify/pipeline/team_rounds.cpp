@@ -61,7 +61,8 @@ TeamRounds::TeamRounds(int robot, std::vector<int> robots, std::set<int> neighbo
     : robot_(robot),
       robots_(std::move(robots)),
       neighbours_(std::move(neighbours)),
-      config_(config) {
+      config_(config),
+      overlapping_(config.overlap_depth > 0) {
     if (!(config_.rel_grad_tol > 0.0) || config_.max_rounds < 1 ||
         !(config_.local_tol_factor > 0.0 && config_.local_tol_factor <= 1.0) ||
         !(config_.refine_rel_grad_tol > 0.0 &&
@@ -178,7 +179,7 @@ void TeamRounds::ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start)
         for (size_t k = 0; k < p.ids.size(); ++k) {
             const slam::PoseId& id = p.ids[k];
             if (id.robot != robot_) continue;  // the sender's own poses or another robot's
-            if (!proposable_.count(id.index) ||
+            if (!overlapping_ || !proposable_.count(id.index) ||
                 kBlock * Eigen::Index(id.index + 1) > own_start->cols() ||
                 p.blocks.rows() != own_start->rows() || !IsLiftedPose(p.blocks, Eigen::Index(k))) {
                 ++rejected_;
@@ -235,6 +236,7 @@ RoundAction TeamRounds::Next() {
         a.own_start = Extrapolate(own_.at(accepted_), prev->second, beta_);
         ApplyProposals(current_, &a.own_start);
         a.neighbours = NeighbourPoses(current_, true);
+        a.overlap = overlapping_;
         // MATH.md: the local tolerance must be tighter than the global one.
         a.block_tol = config_.local_tol_factor * TeamTolerance() * std::max(1.0, accepted_cost_);
         return a;
@@ -264,8 +266,14 @@ void TeamRounds::Decide() {
     }
     // Adaptive restart: an extrapolated round whose cost rose is dropped and the next round sweeps
     // from the last accepted point without extrapolation (RBCD++, restart scheme of AMM-PGO).
-    const bool accept = current_ == 0 || !config_.acceleration || plain_ ||
-                        f <= accepted_cost_ + kCostNoise * std::max(1.0, accepted_cost_);
+    const bool rose =
+        current_ > 0 && f > accepted_cost_ + kCostNoise * std::max(1.0, accepted_cost_);
+    // Without extrapolation only an overlapping sweep raises f: dropped too, and own-pose sweeps
+    // (which lower f) from here on.
+    const bool overlap_rose = rose && beta_ == 0.0 && overlapping_;
+    if (overlap_rose) overlapping_ = false;
+    const bool accept =
+        !overlap_rose && (current_ == 0 || !config_.acceleration || plain_ || !rose);
     if (accept) {
         if (current_ > 0) accepted_prev_ = accepted_;
         accepted_ = current_;

@@ -58,6 +58,9 @@ struct RoundAction {
     Eigen::MatrixXd own_start;  ///< kSweep: own block to start from; kConverged: the solution
     PoseBlocks neighbours;      ///< kSweep, kEvaluate, kConverged: neighbours' poses to use
     double block_tol = 0.0;     ///< kSweep: the block update's gradient tolerance (absolute)
+    /// kSweep: the sweep may be an overlapping one (OverlapSweep); false, own poses only: every
+    /// robot's, once a round without extrapolation raised f (Overlapping()).
+    bool overlap = false;
 };
 
 /// One robot's synchronous RBCD++ bookkeeping (plain data in and out).
@@ -81,6 +84,11 @@ class TeamRounds {
     std::uint64_t Rounds() const { return swept_; }
     /// Adaptive restarts so far.
     int Restarts() const { return restarts_; }
+    /// True while the sweeps may overlap (config overlap_depth > 0). An overlapping sweep need
+    /// not lower f (OverlapSweep), own-pose sweeps do (RBCD): a round without extrapolation whose
+    /// f rose is dropped, and from the next one every robot sweeps its own poses (the same
+    /// decision on every robot, from the same sums), so the rounds keep RBCD's descent.
+    bool Overlapping() const { return overlapping_; }
     /// This robot's colour in the sweeps' order, set when it is placed (round 0): the smallest
     /// not taken by a lower neighbour (greedy colouring in id order). Robots of one colour share
     /// no edge and sweep together; a colour sweeps after every lower one. The round-0 poses
@@ -108,7 +116,8 @@ class TeamRounds {
     bool HaveNeighbours(std::uint64_t round, bool lower_only) const;
     /// Own poses that an earlier neighbour's overlapping sweep of `round` proposed replace those
     /// of the start (multiplicative Schwarz: the sweep goes on from them); of two proposals of
-    /// one pose, the later sweeper's. Only poses in proposable_ (the others are counted).
+    /// one pose, the later sweeper's. Only poses in proposable_, while Overlapping() (the others
+    /// are counted).
     void ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start);
     PoseBlocks NeighbourPoses(std::uint64_t round, bool extrapolate_higher) const;
     void Decide();
@@ -137,6 +146,7 @@ class TeamRounds {
     double beta_ = 0.0;                ///< extrapolation weight of current_
     double gamma_next_ = 1.0;          ///< gamma if current_ is accepted
     double accepted_cost_ = 0.0;       ///< f at accepted_
+    bool overlapping_ = true;          ///< Overlapping()
     std::optional<std::uint64_t> within_;  ///< first round accepted below rel_grad_tol
     bool converged_ = false;
     std::uint64_t swept_ = 0;

@@ -38,7 +38,7 @@ struct PoseGraphTeamResult {
     /// "synchronous": every robot's RBCD++ rounds reached the tolerance; "asynchronous": some
     /// robot gave up its rounds (or never ran them) and went on with asynchronous updates.
     std::string solver_mode = "asynchronous";
-    int restarts = 0;   ///< adaptive restarts of the rounds (robot 0's count)
+    int restarts = 0;  ///< adaptive restarts of the rounds (robot 0's count)
     /// Overlapping sweeps' proposals the robots dropped (summed; SolverSnapshot)
     std::uint64_t rejected_proposals = 0;
     int fallbacks = 0;  ///< certificate rounds the anchor checked centrally instead

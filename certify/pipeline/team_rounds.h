@@ -133,9 +133,9 @@ class TeamRounds {
     std::map<int, std::map<std::uint64_t, PoseBlocks>> nbr_;
     std::map<int, int> colors_;  ///< neighbours' sweep colours, from their round-0 poses
     std::map<int, std::vector<slam::LoopClosure>> edges_;  ///< neighbours' round-0 edges
-    std::set<int> proposable_;   ///< own poses a neighbour may propose (SetProposable)
+    std::set<int> proposable_;    ///< own poses a neighbour may propose (SetProposable)
     std::uint64_t rejected_ = 0;  ///< proposals dropped
-    int color_ = 0;  ///< own sweep colour (set with the round-0 placement)
+    int color_ = 0;               ///< own sweep colour (set with the round-0 placement)
     std::map<std::uint64_t, std::map<int, std::pair<double, double>>> sums_;
     std::uint64_t current_ = 0;        ///< the round in progress (0: start)
     bool evaluated_ = false;           ///< own sums of current_ sent

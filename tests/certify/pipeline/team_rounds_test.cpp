@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -236,17 +237,26 @@ PoseBlocks WithProposals(const std::vector<std::pair<int, Eigen::MatrixXd>>& pro
     return poses;
 }
 
+// The chain 0 - 1 - 2 placed (robot 1 may take proposals of `proposable`), both ends swept round 1
+// and robot 0 sent `message`: robot 1's next action.
+RoundAction MiddleAfter(HandTeam& t, const std::optional<std::set<int>>& proposable,
+                        const PoseBlocks& message) {
+    if (proposable) t[1].SetProposable(*proposable);
+    t.Place();
+    t.Sweep(2, 1);
+    t[0].SweepDone(1, HandTeam::Block(0, 1));
+    t[1].OnPoses(0, 1, message);
+    return t[1].Next();
+}
+
 // An overlapping sweep of robot 0 proposes a pose of robot 1, which sweeps after it: robot 1's
 // round starts from the proposal, and the proposal is not among the neighbours' poses it reads.
 TEST(TeamRounds, ALaterRobotStartsFromTheProposalOfAnEarlierOne) {
     HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
-    t[1].SetProposable({0});
-    t.Place();
-    t.Sweep(2, 1);
-    t[0].SweepDone(1, HandTeam::Block(0, 1));
-    t[1].OnPoses(0, 1, WithProposals({{0, LiftedPose(7.0)}}));
-    const RoundAction middle = t[1].Next();
+    const RoundAction middle =
+        MiddleAfter(t, std::set<int>{0}, WithProposals({{0, LiftedPose(7.0)}}));
     ASSERT_EQ(middle.kind, RoundAction::Kind::kSweep);
+    EXPECT_TRUE(middle.overlap);
     EXPECT_EQ(middle.own_start, LiftedPose(7.0));
     EXPECT_EQ(t[1].RejectedProposals(), 0u);
     const std::vector<slam::PoseId> read{{0, 0}, {2, 0}};
@@ -261,16 +271,13 @@ TEST(TeamRounds, ALaterRobotStartsFromTheProposalOfAnEarlierOne) {
 // dropped and counted, and the sweep starts from the robot's own block.
 TEST(TeamRounds, ProposalsOutsideTheReachOrNotPosesAreDroppedAndCounted) {
     HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
-    t[1].SetProposable({0, 3});  // pose 3 is in the set but beyond robot 1's one-pose block
-    t.Place();
-    t.Sweep(2, 1);
-    t[0].SweepDone(1, HandTeam::Block(0, 1));
     Eigen::MatrixXd nan = LiftedPose(7.0), skew = LiftedPose(7.0);
     nan(4, 3) = std::nan("");
     skew(0, 1) = 0.5;
-    t[1].OnPoses(0, 1,
-                 WithProposals({{1, LiftedPose(7.0)}, {3, LiftedPose(7.0)}, {0, nan}, {0, skew}}));
-    const RoundAction middle = t[1].Next();
+    // Pose 3 is proposable but beyond robot 1's one-pose block.
+    const RoundAction middle = MiddleAfter(
+        t, std::set<int>{0, 3},
+        WithProposals({{1, LiftedPose(7.0)}, {3, LiftedPose(7.0)}, {0, nan}, {0, skew}}));
     ASSERT_EQ(middle.kind, RoundAction::Kind::kSweep);
     EXPECT_EQ(middle.own_start, HandTeam::Block(1, 0));
     EXPECT_EQ(t[1].RejectedProposals(), 4u);
@@ -279,14 +286,40 @@ TEST(TeamRounds, ProposalsOutsideTheReachOrNotPosesAreDroppedAndCounted) {
 // Until the robot says which poses a neighbour may propose, it takes none.
 TEST(TeamRounds, NoProposalIsTakenBeforeTheProposablePosesAreSet) {
     HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
-    t.Place();
-    t.Sweep(2, 1);
-    t[0].SweepDone(1, HandTeam::Block(0, 1));
-    t[1].OnPoses(0, 1, WithProposals({{0, LiftedPose(7.0)}}));
-    const RoundAction middle = t[1].Next();
+    const RoundAction middle = MiddleAfter(t, std::nullopt, WithProposals({{0, LiftedPose(7.0)}}));
     ASSERT_EQ(middle.kind, RoundAction::Kind::kSweep);
     EXPECT_EQ(middle.own_start, HandTeam::Block(1, 0));
     EXPECT_EQ(t[1].RejectedProposals(), 1u);
+}
+
+// Round 1 has no extrapolation (RBCD++'s first weight is 0): when the team's f rises in it, the
+// overlapping sweeps raised it, so every robot drops the round and sweeps own poses from then on.
+TEST(TeamRounds, ARoundWithoutExtrapolationWhoseCostRoseEndsTheOverlap) {
+    HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
+    t.Place();  // f = 3 at round 0
+    for (int r : {0, 2, 1}) {
+        const RoundAction a = t[r].Next();
+        ASSERT_EQ(a.kind, RoundAction::Kind::kSweep) << "robot " << r;
+        EXPECT_TRUE(a.overlap) << "robot " << r;
+        t.Sweep(r, 1);
+    }
+    for (int r : t.robots) {
+        ASSERT_EQ(t[r].Next().kind, RoundAction::Kind::kEvaluate) << "robot " << r;
+        for (auto& [q, peer] : t.team) peer.OnSums(r, 1, 2.0, 1.0);  // f = 6
+    }
+    int sweeps = 0;
+    for (int r : t.robots) {
+        const RoundAction a = t[r].Next();
+        EXPECT_FALSE(t[r].Overlapping()) << "robot " << r;
+        EXPECT_EQ(t[r].Restarts(), 1) << "robot " << r;
+        if (a.kind == RoundAction::Kind::kSweep) {  // the ends, colour 0
+            EXPECT_EQ(a.round, 2u);
+            EXPECT_FALSE(a.overlap);
+            EXPECT_EQ(a.own_start, HandTeam::Block(r, 0)) << "not from the accepted round 0";
+            ++sweeps;
+        }
+    }
+    EXPECT_EQ(sweeps, 2);
 }
 
 // Two robots on smallGrid3D: overlapping sweeps of depth 4 reach the same optimum in far fewer

@@ -208,8 +208,7 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
 void SolverActor::Changed() {
     tolerance_scale_ = 1.0;  // a new graph: the configured tolerance again
     overlap_.reset();        // its domain is of the old graph
-    boundary_.reset();
-    if (rounds_) rounds_->SetProposable(Boundary().proposable);
+    boundary_.reset();       // and rounds_' proposable poses are set again (AdvanceRounds)
     refined_ = false;
     if (restored_) report_.reset();  // the checkpoint's report is of the graph before this change
     restored_ = false;

@@ -203,10 +203,11 @@ class SolverActor final : public NodeActor {
     int rounds_restarts_ = 0;                         ///< over every level
     std::uint64_t rounds_rejected_ = 0;               ///< proposals dropped, over every level
     std::optional<certify::RoundBoundary> boundary_;  ///< Boundary(), of the current graph
-    std::vector<certify::PoseBlocks> early_poses_;    ///< round poses heard before rounds_ began
-    std::vector<v1::SolverStatus> early_sums_;        ///< round sums heard before rounds_ began
-    std::vector<v1::PublicPoses> last_round_poses_;   ///< last two rounds', re-sent on a stall
-    std::vector<v1::SolverStatus> last_round_sums_;   ///< last two rounds', re-sent on a stall
+    bool proposals_logged_ = false;  ///< a dropped proposal was logged (once per actor)
+    std::vector<certify::PoseBlocks> early_poses_;   ///< round poses heard before rounds_ began
+    std::vector<v1::SolverStatus> early_sums_;       ///< round sums heard before rounds_ began
+    std::vector<v1::PublicPoses> last_round_poses_;  ///< last two rounds', re-sent on a stall
+    std::vector<v1::SolverStatus> last_round_sums_;  ///< last two rounds', re-sent on a stall
     std::chrono::steady_clock::time_point last_round_progress_{};
     /// Round sessions: a peer that restarted lost its rounds, so the team opens a new session
     /// (solver_actor_rounds.cpp); the sessions only grow, and every robot joins the highest.

@@ -199,7 +199,7 @@ PoseBlocks RoundPoses(const SolverState& me, const RoundBoundary& boundary, std:
     out.blocks.resize(full.blocks.rows(), kBlock * Eigen::Index(boundary.sent.size()) + extra);
     Eigen::Index c = 0;
     for (const auto& id : boundary.sent) {
-        if (id.index >= me.NumPoses()) continue;  // a boundary of a larger graph
+        if (id.index >= me.NumPoses()) continue;  // BoundaryOf keeps only poses of the block
         out.ids.push_back(id);
         out.blocks.middleCols(c, kBlock) = full.blocks.middleCols(kBlock * id.index, kBlock);
         c += kBlock;

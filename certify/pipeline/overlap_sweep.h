@@ -68,7 +68,7 @@ std::vector<slam::LoopClosure> EdgesTouching(const SolverState& me);
 /// (fixed while the graph is: the caller keeps it until the graph changes). An "end" is an own
 /// pose with an edge to another robot; a neighbour's domain enters the own block only there.
 struct RoundBoundary {
-    int depth = 0;
+    int depth = 0;  ///< the overlap depth it was computed for
     /// The own poses sent each round, ascending: within `depth` own edges of an end (what the
     /// neighbours' domains read, held fixed or optimised) and pose 0. Empty at depth 0.
     std::vector<slam::PoseId> sent;

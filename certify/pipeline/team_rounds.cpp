@@ -174,6 +174,8 @@ void TeamRounds::ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start)
         if (Earlier(j, round)) earlier.emplace_back(colors_.count(j) ? colors_.at(j) : 0, j);
     }
     std::sort(earlier.begin(), earlier.end());
+    const bool count = counted_ != round;  // a second Next() before SweepDone counts nothing
+    counted_ = round;
     for (const auto& [color, j] : earlier) {
         const auto& p = nbr_.at(j).at(round);  // HaveNeighbours: an earlier one's poses are in
         for (size_t k = 0; k < p.ids.size(); ++k) {
@@ -182,7 +184,7 @@ void TeamRounds::ApplyProposals(std::uint64_t round, Eigen::MatrixXd* own_start)
             if (!overlapping_ || !proposable_.count(id.index) ||
                 kBlock * Eigen::Index(id.index + 1) > own_start->cols() ||
                 p.blocks.rows() != own_start->rows() || !IsLiftedPose(p.blocks, Eigen::Index(k))) {
-                ++rejected_;
+                if (count) ++rejected_;
                 continue;
             }
             own_start->middleCols(kBlock * Eigen::Index(id.index), kBlock) =
@@ -268,10 +270,13 @@ void TeamRounds::Decide() {
     // from the last accepted point without extrapolation (RBCD++, restart scheme of AMM-PGO).
     const bool rose =
         current_ > 0 && f > accepted_cost_ + kCostNoise * std::max(1.0, accepted_cost_);
-    // Without extrapolation only an overlapping sweep raises f: dropped too, and own-pose sweeps
-    // (which lower f) from here on.
+    // Without extrapolation, on a fixed graph, only an overlapping sweep raises f: dropped too,
+    // and own-pose sweeps (which lower f) for the rest of these rounds.
     const bool overlap_rose = rose && beta_ == 0.0 && overlapping_;
-    if (overlap_rose) overlapping_ = false;
+    if (overlap_rose) {
+        overlapping_ = false;
+        overlap_ended_ = current_;
+    }
     const bool accept =
         !overlap_rose && (current_ == 0 || !config_.acceleration || plain_ || !rose);
     if (accept) {

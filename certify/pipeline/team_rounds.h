@@ -86,9 +86,13 @@ class TeamRounds {
     int Restarts() const { return restarts_; }
     /// True while the sweeps may overlap (config overlap_depth > 0). An overlapping sweep need
     /// not lower f (OverlapSweep), own-pose sweeps do (RBCD): a round without extrapolation whose
-    /// f rose is dropped, and from the next one every robot sweeps its own poses (the same
-    /// decision on every robot, from the same sums), so the rounds keep RBCD's descent.
+    /// f rose is dropped (counted in Restarts), and from the next one every robot sweeps its own
+    /// poses for the rest of these rounds (the same decision on every robot, from the same sums,
+    /// when the team shares one overlap_depth), so the rounds keep RBCD's descent.
+    /// OverlapEndedAt() says at which round.
     bool Overlapping() const { return overlapping_; }
+    /// The round whose rise ended the overlap (none while Overlapping()).
+    std::optional<std::uint64_t> OverlapEndedAt() const { return overlap_ended_; }
     /// This robot's colour in the sweeps' order, set when it is placed (round 0): the smallest
     /// not taken by a lower neighbour (greedy colouring in id order). Robots of one colour share
     /// no edge and sweep together; a colour sweeps after every lower one. The round-0 poses
@@ -133,9 +137,10 @@ class TeamRounds {
     std::map<int, std::map<std::uint64_t, PoseBlocks>> nbr_;
     std::map<int, int> colors_;  ///< neighbours' sweep colours, from their round-0 poses
     std::map<int, std::vector<slam::LoopClosure>> edges_;  ///< neighbours' round-0 edges
-    std::set<int> proposable_;    ///< own poses a neighbour may propose (SetProposable)
-    std::uint64_t rejected_ = 0;  ///< proposals dropped
-    int color_ = 0;               ///< own sweep colour (set with the round-0 placement)
+    std::set<int> proposable_;              ///< own poses a neighbour may propose (SetProposable)
+    std::uint64_t rejected_ = 0;            ///< proposals dropped
+    std::optional<std::uint64_t> counted_;  ///< the round whose proposals rejected_ counted
+    int color_ = 0;                         ///< own sweep colour (set with the round-0 placement)
     std::map<std::uint64_t, std::map<int, std::pair<double, double>>> sums_;
     std::uint64_t current_ = 0;        ///< the round in progress (0: start)
     bool evaluated_ = false;           ///< own sums of current_ sent
@@ -146,8 +151,9 @@ class TeamRounds {
     double beta_ = 0.0;                ///< extrapolation weight of current_
     double gamma_next_ = 1.0;          ///< gamma if current_ is accepted
     double accepted_cost_ = 0.0;       ///< f at accepted_
-    bool overlapping_ = true;          ///< Overlapping()
-    std::optional<std::uint64_t> within_;  ///< first round accepted below rel_grad_tol
+    bool overlapping_;                 ///< Overlapping() (from the config's overlap_depth)
+    std::optional<std::uint64_t> overlap_ended_;  ///< OverlapEndedAt()
+    std::optional<std::uint64_t> within_;         ///< first round accepted below rel_grad_tol
     bool converged_ = false;
     std::uint64_t swept_ = 0;
     int restarts_ = 0;

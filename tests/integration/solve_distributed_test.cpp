@@ -222,6 +222,8 @@ TEST(SolveDistributed, OverlappingSweepsCertifyTheOptimumInFewerIterations) {
         EXPECT_EQ(team["verdict"], "certified") << transport;
         EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), kRelCost);
         EXPECT_LE(2 * team["iterations"].get<int>(), own["iterations"].get<int>()) << transport;
+        // Honest robots propose only poses the receiver's boundary holds.
+        EXPECT_EQ(team["rejected_proposals"].get<int>(), 0) << transport;
     }
     const ShellResult alone =
         Shell(std::string(CERTISLAM_BINARY) + " solve " + file + " --overlap 2 2>&1");

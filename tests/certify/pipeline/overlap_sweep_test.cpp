@@ -66,6 +66,28 @@ TEST(OverlapSweep, NamesADomainPoseItWasNotSent) {
     }
 }
 
+// Robot 1 of ThreeChains (ends 1/0 and 1/5): at depth 1 it sends the ends, their neighbours and
+// pose 0, takes proposals of the ends only and sends the four edges touching them; at depth 2 the
+// ends' neighbours may be proposed too.
+TEST(RoundBoundary, OfAChainBetweenTwoRobots) {
+    SolverConfig config;
+    config.odometry_edges = false;
+    SolverState me(1, config);
+    for (int k = 0; k < 6; ++k) me.AddKeyframe(k, Eigen::Isometry3d::Identity());
+    for (const auto& e : ThreeChains()) {
+        if (e.a.robot == 1 || e.b.robot == 1) me.AddLoop(e);
+    }
+    const RoundBoundary one = BoundaryOf(me, 1);
+    const std::vector<slam::PoseId> sent{{1, 0}, {1, 1}, {1, 4}, {1, 5}};
+    EXPECT_EQ(one.sent, sent);
+    EXPECT_EQ(one.proposable, (std::set<int>{0, 5}));
+    EXPECT_EQ(one.edges.size(), 4u);
+    const RoundBoundary two = BoundaryOf(me, 2);
+    EXPECT_EQ(two.sent.size(), 6u);
+    EXPECT_EQ(two.proposable, (std::set<int>{0, 1, 4, 5}));
+    EXPECT_TRUE(BoundaryOf(me, 0).sent.empty());
+}
+
 // Every own pose of robot i that robot j's domain can hold, at any depth and with every other
 // robot sweeping after j (the largest domains), is proposable in i's boundary; and the boundary
 // bounds the proposals: on sphere2500 in 4 robots, far fewer poses than the block at depth 1.

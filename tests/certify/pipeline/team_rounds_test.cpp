@@ -153,6 +153,23 @@ struct HandTeam {
         poses.sweep_color = team.at(r).SweepColor();
         for (int peer : neighbours.at(r)) team.at(peer).OnPoses(r, round, poses);
     }
+    /// Round `round` >= 1: every robot sweeps (colour 0, then the others), then every robot's
+    /// sums, `cost` each; checks each sweep's overlap flag against `overlap`.
+    void Round(std::uint64_t round, double cost, bool overlap) {
+        for (bool later : {false, true}) {
+            for (int r : robots) {
+                if ((team.at(r).SweepColor() > 0) != later) continue;
+                const RoundAction a = team.at(r).Next();
+                ASSERT_EQ(a.kind, RoundAction::Kind::kSweep) << "robot " << r << " round " << round;
+                EXPECT_EQ(a.overlap, overlap) << "robot " << r << " round " << round;
+                Sweep(r, round);
+            }
+        }
+        for (int r : robots) {
+            ASSERT_EQ(team.at(r).Next().kind, RoundAction::Kind::kEvaluate) << "robot " << r;
+            for (auto& [q, peer] : team) peer.OnSums(r, round, cost, 1.0);
+        }
+    }
     /// Round 0: placements in id order, then every robot's sums (far from converged).
     void Place() {
         for (int r : robots) {
@@ -296,17 +313,8 @@ TEST(TeamRounds, NoProposalIsTakenBeforeTheProposablePosesAreSet) {
 // overlapping sweeps raised it, so every robot drops the round and sweeps own poses from then on.
 TEST(TeamRounds, ARoundWithoutExtrapolationWhoseCostRoseEndsTheOverlap) {
     HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
-    t.Place();  // f = 3 at round 0
-    for (int r : {0, 2, 1}) {
-        const RoundAction a = t[r].Next();
-        ASSERT_EQ(a.kind, RoundAction::Kind::kSweep) << "robot " << r;
-        EXPECT_TRUE(a.overlap) << "robot " << r;
-        t.Sweep(r, 1);
-    }
-    for (int r : t.robots) {
-        ASSERT_EQ(t[r].Next().kind, RoundAction::Kind::kEvaluate) << "robot " << r;
-        for (auto& [q, peer] : t.team) peer.OnSums(r, 1, 2.0, 1.0);  // f = 6
-    }
+    t.Place();              // f = 3 at round 0
+    t.Round(1, 2.0, true);  // f = 6
     int sweeps = 0;
     for (int r : t.robots) {
         const RoundAction a = t[r].Next();
@@ -320,6 +328,31 @@ TEST(TeamRounds, ARoundWithoutExtrapolationWhoseCostRoseEndsTheOverlap) {
         }
     }
     EXPECT_EQ(sweeps, 2);
+    EXPECT_EQ(t[1].OverlapEndedAt(), std::optional<std::uint64_t>(1));
+}
+
+// An extrapolated round whose f rose restarts (RBCD++) and keeps the overlap; the plain round
+// after it rising too ends it, and a proposal after that is dropped and counted.
+TEST(TeamRounds, OnlyARiseWithoutExtrapolationEndsTheOverlap) {
+    HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
+    t[1].SetProposable({0});
+    t.Place();              // f = 3
+    t.Round(1, 0.5, true);  // f = 1.5: accepted, the next round extrapolates
+    t.Round(2, 1.0, true);  // f = 3: rose with extrapolation
+    for (int r : t.robots) t[r].Next();  // each decides round 2
+    EXPECT_TRUE(t[1].Overlapping());
+    EXPECT_EQ(t[1].Restarts(), 1);
+    t.Round(3, 1.0, true);  // plain (after the restart), rose again
+    for (int r : t.robots) t[r].Next();  // each decides round 3
+    EXPECT_FALSE(t[1].Overlapping());
+    EXPECT_EQ(t[1].Restarts(), 2);
+    t.Sweep(0, 4);
+    t.Sweep(2, 4);
+    t[1].OnPoses(0, 4, WithProposals({{0, LiftedPose(7.0)}}));
+    const RoundAction middle = t[1].Next();
+    ASSERT_EQ(middle.kind, RoundAction::Kind::kSweep);
+    EXPECT_FALSE(middle.overlap);
+    EXPECT_EQ(t[1].RejectedProposals(), 1u);
 }
 
 // Two robots on smallGrid3D: overlapping sweeps of depth 4 reach the same optimum in far fewer

@@ -336,13 +336,13 @@ TEST(TeamRounds, ARoundWithoutExtrapolationWhoseCostRoseEndsTheOverlap) {
 TEST(TeamRounds, OnlyARiseWithoutExtrapolationEndsTheOverlap) {
     HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
     t[1].SetProposable({0});
-    t.Place();              // f = 3
-    t.Round(1, 0.5, true);  // f = 1.5: accepted, the next round extrapolates
-    t.Round(2, 1.0, true);  // f = 3: rose with extrapolation
+    t.Place();                           // f = 3
+    t.Round(1, 0.5, true);               // f = 1.5: accepted, the next round extrapolates
+    t.Round(2, 1.0, true);               // f = 3: rose with extrapolation
     for (int r : t.robots) t[r].Next();  // each decides round 2
     EXPECT_TRUE(t[1].Overlapping());
     EXPECT_EQ(t[1].Restarts(), 1);
-    t.Round(3, 1.0, true);  // plain (after the restart), rose again
+    t.Round(3, 1.0, true);               // plain (after the restart), rose again
     for (int r : t.robots) t[r].Next();  // each decides round 3
     EXPECT_FALSE(t[1].Overlapping());
     EXPECT_EQ(t[1].Restarts(), 2);

@@ -166,17 +166,9 @@ bool SolverActor::SyncAction(const certify::RoundAction& a) {
 void SolverActor::AdvanceRounds() {
     if (!rounds_ || rounds_level_ != state_.StaircaseLevel()) return;
     if (!boundary_) rounds_->SetProposable(Boundary().proposable);  // the graph changed
-    const bool overlapping = rounds_->Overlapping();
     bool progressed = false;
     while (!rounds_converged_ && !rounds_gave_up_ && SyncAction(rounds_->Next())) {
         progressed = true;
-    }
-    if (overlapping && !rounds_->Overlapping()) {
-        std::fprintf(stderr,
-                     "solver %d: team round %llu raised f without extrapolation: own-pose "
-                     "sweeps from here on\n",
-                     RobotId(),
-                     static_cast<unsigned long long>(rounds_->OverlapEndedAt().value_or(0)));
     }
     if (!proposals_logged_ && rounds_->RejectedProposals() > 0) {
         proposals_logged_ = true;  // once: every one is counted (rejected_proposals)

@@ -208,20 +208,26 @@ void CertifierActor::CheckCentrally(const slam::PoseGraph& graph, const Eigen::M
     const auto Q = slam::ConnectionLaplacian(graph);
     const auto result = certify::Certify(Q, X, 3, config_.certificate);
     ++checks_;
+    Publish(result, static_cast<std::uint32_t>(X.rows()), graph.edges.size(), path, bundles);
+    if (result.status == certify::CertificateResult::Status::kNotOptimal &&
+        level_ < config_.max_staircase_steps) {
+        Escape(Q, X, result.eigenvector, result.gradient_tolerance, bundles);
+    }
+}
+
+void CertifierActor::Publish(const certify::CertificateResult& result, std::uint32_t rank,
+                             std::uint64_t edges, v1::CertificatePath path,
+                             const std::map<int, Bundle>& bundles) {
     {
         std::lock_guard lock(verdict_mutex_);
         certificate_ = result;
     }
     NoteVerdict(result.status == certify::CertificateResult::Status::kCertified, bundles);
-    auto report = ToProto(result, static_cast<std::uint32_t>(X.rows()));
+    auto report = ToProto(result, rank);
     *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-    report.set_iteration(graph.edges.size());  // which graph: its edge count
+    report.set_iteration(edges);  // which graph: its edge count
     report.set_path(path);
     Send(*out_, transport::Pack(report), true);
-    if (result.status == certify::CertificateResult::Status::kNotOptimal &&
-        level_ < config_.max_staircase_steps) {
-        Escape(Q, X, result.eigenvector, result.gradient_tolerance, bundles);
-    }
 }
 
 void CertifierActor::Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::MatrixXd& X,
@@ -469,16 +475,7 @@ void CertifierActor::RoundFinished() {
         CheckCentrally(graph, X, v1::CERTIFICATE_PATH_FALLBACK, round_bundles_);
         return;
     }
-    {
-        std::lock_guard lock(verdict_mutex_);
-        certificate_ = decided;
-    }
-    NoteVerdict(decided->status == certify::CertificateResult::Status::kCertified, round_bundles_);
-    auto report = ToProto(*decided, round_rank_);
-    *report.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
-    report.set_iteration(round_edges_);  // which graph: its edge count
-    report.set_path(v1::CERTIFICATE_PATH_DISTRIBUTED);
-    Send(*out_, transport::Pack(report), true);
+    Publish(*decided, round_rank_, round_edges_, v1::CERTIFICATE_PATH_DISTRIBUTED, round_bundles_);
     if (decided->status != certify::CertificateResult::Status::kNotOptimal ||
         level_ >= config_.max_staircase_steps) {
         return;

@@ -43,6 +43,7 @@ PoseGraphTeamResult SummariseNodes(const std::vector<const PoseGraphNode*>& node
     out.report = s.report;
     out.rank = s.rank;
     out.restarts = s.restarts;
+    out.overlap_ends = s.overlap_ends;
     out.fallbacks = anchor.Certifier().Fallbacks();
     out.certificate_rounds = anchor.Certifier().Rounds();
     out.lanczos_steps = anchor.Certifier().LanczosSteps();

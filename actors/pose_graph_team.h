@@ -41,7 +41,8 @@ struct PoseGraphTeamResult {
     int restarts = 0;  ///< adaptive restarts of the rounds (robot 0's count)
     /// Overlapping sweeps' proposals the robots dropped (summed; SolverSnapshot)
     std::uint64_t rejected_proposals = 0;
-    int fallbacks = 0;  ///< certificate rounds the anchor checked centrally instead
+    int overlap_ends = 0;  ///< runs of the rounds whose overlap a rise of f ended (robot 0's count)
+    int fallbacks = 0;     ///< certificate rounds the anchor checked centrally instead
     /// How far the poses leave the plane z = 0 (a planar graph's lift, slam::LiftPlanar): the
     /// largest |z| and the largest tilt of a pose's z axis
     double out_of_plane_m = 0.0;

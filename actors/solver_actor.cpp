@@ -399,6 +399,7 @@ void SolverActor::UpdateSnapshot() {
     s.team_rounds = rounds_swept_;
     s.restarts = rounds_restarts_ + (rounds_ ? rounds_->Restarts() : 0);
     s.rejected_proposals = rounds_rejected_ + (rounds_ ? rounds_->RejectedProposals() : 0);
+    s.overlap_ends = rounds_overlap_ends_ + (rounds_ && rounds_->OverlapEndedAt() ? 1 : 0);
     s.rounds_converged = rounds_converged_;
     s.rounds_gave_up = rounds_gave_up_;
     s.restored = restored_;

@@ -85,6 +85,8 @@ struct SolverSnapshot {
     /// Overlapping sweeps' proposals of own poses dropped (TeamRounds::SetProposable): a
     /// neighbour proposed a pose its domain cannot hold, or a block that is not a pose
     std::uint64_t rejected_proposals = 0;
+    /// Runs of the rounds whose overlapping sweeps a rise of f ended (TeamRounds::OverlapEndedAt)
+    int overlap_ends = 0;
     bool rounds_converged = false;  ///< the rounds reached the team's gradient tolerance
     bool rounds_gave_up = false;    ///< the rounds hit max_rounds: asynchronous updates took over
     /// The certified state came from the durable log's checkpoint (a restart after the team
@@ -202,6 +204,7 @@ class SolverActor final : public NodeActor {
     std::uint64_t rounds_swept_ = 0;                  ///< over every level
     int rounds_restarts_ = 0;                         ///< over every level
     std::uint64_t rounds_rejected_ = 0;               ///< proposals dropped, over every level
+    int rounds_overlap_ends_ = 0;                     ///< overlaps a rise ended, over every level
     std::optional<certify::RoundBoundary> boundary_;  ///< Boundary(), of the current graph
     bool proposals_logged_ = false;  ///< a dropped proposal was logged (once per actor)
     std::vector<certify::PoseBlocks> early_poses_;   ///< round poses heard before rounds_ began

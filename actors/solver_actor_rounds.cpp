@@ -240,6 +240,7 @@ void SolverActor::DropRounds() {
     if (rounds_) {
         rounds_restarts_ += rounds_->Restarts();
         rounds_rejected_ += rounds_->RejectedProposals();
+        if (rounds_->OverlapEndedAt()) ++rounds_overlap_ends_;
     }
     rounds_.reset();
     overlap_.reset();

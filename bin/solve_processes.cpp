@@ -283,6 +283,7 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
     r.certificate_seconds = Field<double>(anchor, "certificate_seconds", id);
     r.rank = Field<int>(anchor, "rank", id);
     r.restarts = Field<int>(anchor, "restarts", id);
+    r.overlap_ends = Field<int>(anchor, "overlap_ends", id);
     r.fallbacks = Field<int>(anchor, "central_fallbacks", id);
     if (anchor.contains("certificate_report")) {
         v1::CertificateReport report;

@@ -82,14 +82,16 @@ Eigen::MatrixXd PointOf(const slam::PoseGraph& graph, const std::string& point,
                         const certify::SolverConfig& solver) {
     if (point == "chordal") return slam::LiftToRank(slam::ChordalInitialization(graph), 5);
     if (point == "rounds") {
+        const auto start = Clock::now();
         const certify::InMemoryTeam team =
             certify::RunTeamRoundsInMemory(slam::SplitGraph(graph, partition), solver, rounds);
         if (!team.AllConverged()) {
             throw std::runtime_error("the rounds did not converge in " +
                                      std::to_string(rounds.max_rounds) + " rounds");
         }
-        std::fprintf(stderr, "rounds: %llu swept, %d restarts\n",
-                     static_cast<unsigned long long>(team.rounds.front()), team.restarts.front());
+        std::fprintf(stderr, "rounds: %llu swept, %d restarts, %.2f s\n",
+                     static_cast<unsigned long long>(team.rounds.front()), team.restarts.front(),
+                     SecondsSince(start));
         return team.X();
     }
     const certify::PoseGraphSolverResult solved = certify::SolvePoseGraph(graph);
@@ -163,6 +165,12 @@ int RunEigenBench(int argc, char** argv) {
     app.add_option("--block-reduction", solver.rbcd.block_grad_reduction,
                    "--point rounds: a block update stops when its gradient fell by this factor")
         ->check(CLI::Range(1e-12, 0.999));
+    app.add_option("--tcg-floor", solver.rbcd.tcg_residual_floor,
+                   "--point rounds: truncated CG stops at this * the block's gradient tolerance")
+        ->check(CLI::Range(0.0, 0.999));
+    app.add_option("--tcg-max", solver.rbcd.max_tcg_iterations,
+                   "--point rounds: truncated-CG iterations per trust-region step at most")
+        ->check(CLI::PositiveNumber);
     app.add_option("--block", lobpcg.block_size, "LOBPCG block size")->check(CLI::Range(1, 16));
     app.add_option("--drop", lobpcg.drop_tolerance, "LOBPCG Gram drop tolerance");
     app.add_option("--shift", lobpcg.shift_relative, "LOBPCG preconditioner shift (relative)");

@@ -110,6 +110,13 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
                    {"inter_robot_loops", s.inter_robot_loops},
                    {"staircase_level", s.staircase_level},
                    {"restored_from_log", s.restored}};
+        // The synchronous rounds (solver.mode rounds), as solve --distributed reports them
+        robot["rounds"] = {{"swept", s.team_rounds},
+                           {"restarts", s.restarts},
+                           {"rejected_proposals", s.rejected_proposals},
+                           {"overlap_ends", s.overlap_ends},
+                           {"converged", s.rounds_converged},
+                           {"gave_up", s.rounds_gave_up}};
         Evaluate(source, robots[k], s, &robot);
         if (k < meshes.size() && !meshes[k].is_null()) robot["mesh"] = meshes[k];
         report["robots"].push_back(robot);

@@ -36,7 +36,14 @@ struct PoseBlocks {
 struct SolverConfig {
     int rank = 5;           ///< relaxation rank r, >= 3
     EdgeNoiseConfig noise;  ///< odometry edge weights (loops carry their own)
-    slam::RbcdConfig rbcd;  ///< block trust-region settings (rel_grad_tol used)
+    /// Block trust-region settings (rel_grad_tol used); truncated CG stops at half the block's
+    /// gradient tolerance at the latest, as certify::StaircaseConfig's: a block update stops at
+    /// that tolerance anyway, so a tighter inner solve buys nothing.
+    slam::RbcdConfig rbcd = [] {
+        slam::RbcdConfig c;
+        c.tcg_residual_floor = 0.5;
+        return c;
+    }();
     /// True: consecutive keyframes are joined by an odometry edge weighted by `noise` (a LiDAR
     /// front end). False: keyframe poses are initial guesses only and every edge, odometry
     /// included, arrives as a loop closure with its own weights (a pose-graph file's robot).

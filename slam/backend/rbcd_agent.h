@@ -25,9 +25,9 @@ struct RbcdConfig {
     /// Truncated CG stops at the latest when its residual is <= this * the trust region's
     /// gradient tolerance (Manopt's r0 min(r0, 0.1) alone asks for more accuracy than the
     /// stopping test needs once the gradient is small). 0: Manopt's rule alone, so a solve ends
-    /// far below its tolerance; the actors keep 0 because a team's in-process and multi-process
-    /// runs must agree to 1e-6. certify::StaircaseConfig's default (`certislam solve` without
-    /// --robust) sets 0.5; the GNC inner solves of --robust keep 0. In [0, 1).
+    /// far below its tolerance. certify::StaircaseConfig (`certislam solve` without --robust) and
+    /// certify::SolverConfig (the robots' solver actors) set 0.5; the GNC inner solves of
+    /// --robust keep 0. In [0, 1).
     double tcg_residual_floor = 0.0;
     int max_iterations = 2000;   ///< outer RBCD iterations, >= 1
     double max_seconds = 600.0;  ///< wall-clock limit, > 0

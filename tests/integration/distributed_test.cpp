@@ -13,6 +13,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
 #include <string>
@@ -316,6 +317,17 @@ TEST_F(Distributed, RobotRestartedAfterItsTeamLeftEndsWithTheCertifiedStateOfIts
                        (dir_ / "team").string() + " 2>&1; rc1=$?; wait; exit $rc1");
     ASSERT_EQ(team.exit_code, 0) << team.out;
     EXPECT_NE(team.out.find("\"restored_from_log\": false"), std::string::npos) << team.out;
+    {  // the robot's report says how its synchronous rounds went
+        std::ifstream in(dir_ / "team" / "robot1.report.json");
+        const auto report = nlohmann::json::parse(in, nullptr, false);
+        ASSERT_FALSE(report.is_discarded());
+        const auto& rounds = report["robots"][0]["rounds"];
+        EXPECT_TRUE(rounds["converged"].get<bool>()) << rounds;
+        EXPECT_FALSE(rounds["gave_up"].get<bool>()) << rounds;
+        EXPECT_GT(rounds["swept"].get<int>(), 0) << rounds;
+        EXPECT_EQ(rounds["rejected_proposals"].get<int>(), 0) << rounds;
+        EXPECT_LE(rounds["overlap_ends"].get<int>(), rounds["restarts"].get<int>()) << rounds;
+    }
 
     // Alone: no peer answers, so only the log can end it before the timeout.
     const auto alone =

@@ -224,6 +224,8 @@ TEST(SolveDistributed, OverlappingSweepsCertifyTheOptimumInFewerIterations) {
         EXPECT_LE(2 * team["iterations"].get<int>(), own["iterations"].get<int>()) << transport;
         // Honest robots propose only poses the receiver's boundary holds.
         EXPECT_EQ(team["rejected_proposals"].get<int>(), 0) << transport;
+        // Each overlap a rise ended dropped that round: it is one of the restarts.
+        EXPECT_LE(team["overlap_ends"].get<int>(), team["restarts"].get<int>()) << transport;
     }
     const ShellResult alone =
         Shell(std::string(CERTISLAM_BINARY) + " solve " + file + " --overlap 2 2>&1");
@@ -296,6 +298,9 @@ TEST(SolveDistributed, APlanarGraphIsSolvedAsItsLiftAndCertifiedInThePlane) {
         EXPECT_LE(team["out_of_plane"]["rad"].get<double>(), 1e-6);
         EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), 1e-6)
             << team["cost"] << " vs " << central["cost"];
+        // On this ring an overlapping sweep raises f in an early plain round: every robot ends
+        // the overlap there, and the anchor's count crosses from a robot process (ipc) too.
+        EXPECT_EQ(team["overlap_ends"].get<int>(), 1) << transport;
     }
 }
 

@@ -19,6 +19,10 @@ constexpr int kBlock = kDimension + 1;  // columns per lifted pose
 // A rise of f below this relative size is the rounding noise of the robots' summed shares near
 // the optimum, not an overshoot: it does not restart the extrapolation.
 constexpr double kCostNoise = 1e-14;
+// Once a kept extrapolated round changes f by at most this relative amount, f's changes are too
+// small to show the extrapolation overshooting; the gradient norm still shows it, and a rise of
+// it resets the extrapolation (gradient restart, O'Donoghue and Candes 2015).
+constexpr double kFlatCost = 1e-9;
 
 /// RBCD++ (Alg. 3): Proj(X_a + beta (X_a - X_b)) pose by pose; X_a itself when beta is 0.
 Eigen::MatrixXd Extrapolate(const Eigen::MatrixXd& X_a, const Eigen::MatrixXd& X_b, double beta) {
@@ -279,12 +283,19 @@ void TeamRounds::Decide() {
     }
     const bool accept =
         !overlap_rose && (current_ == 0 || !config_.acceleration || plain_ || !rose);
+    const double grad = std::sqrt(grad_sq), scale = std::max(1.0, f);
+    // The round is kept (it did not raise f) but its momentum is spent: the next one sweeps
+    // without extrapolation, and the extrapolation builds up again from there.
+    const bool grad_rose =
+        accept && current_ > 0 && beta_ > 0.0 && grad > accepted_grad_ &&
+        std::abs(f - accepted_cost_) <= kFlatCost * std::max(1.0, accepted_cost_);
     if (accept) {
         if (current_ > 0) accepted_prev_ = accepted_;
         accepted_ = current_;
         accepted_cost_ = f;
-        gamma_ = plain_ ? 1.0 : gamma_next_;
-        const double grad = std::sqrt(grad_sq), scale = std::max(1.0, f);
+        accepted_grad_ = grad;
+        gamma_ = plain_ || grad_rose ? 1.0 : gamma_next_;
+        if (grad_rose) ++restarts_;
         if (!within_ && grad <= config_.rel_grad_tol * scale) within_ = current_;
         // Refined, or out of refinement rounds (the rounds' own budget included) at a point
         // still within rel_grad_tol: an accepted round lowers f, not always the gradient.

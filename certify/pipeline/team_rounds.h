@@ -82,7 +82,9 @@ class TeamRounds {
 
     /// Rounds swept so far (round 0 is the start, not a sweep).
     std::uint64_t Rounds() const { return swept_; }
-    /// Adaptive restarts so far.
+    /// Adaptive restarts so far: rounds dropped because f rose, and kept extrapolated rounds
+    /// whose gradient norm rose while f changed by at most 1e-9 f (the next sweeps without
+    /// extrapolation).
     int Restarts() const { return restarts_; }
     /// True while the sweeps may overlap (config overlap_depth > 0). An overlapping sweep need
     /// not lower f (OverlapSweep), own-pose sweeps do (RBCD): a round without extrapolation whose
@@ -151,6 +153,7 @@ class TeamRounds {
     double beta_ = 0.0;                ///< extrapolation weight of current_
     double gamma_next_ = 1.0;          ///< gamma if current_ is accepted
     double accepted_cost_ = 0.0;       ///< f at accepted_
+    double accepted_grad_ = 0.0;       ///< ||rgrad f|| at accepted_ (gradient restart)
     bool overlapping_;                 ///< Overlapping() (from the config's overlap_depth)
     std::optional<std::uint64_t> overlap_ended_;  ///< OverlapEndedAt()
     std::optional<std::uint64_t> within_;         ///< first round accepted below rel_grad_tol

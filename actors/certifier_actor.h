@@ -116,7 +116,7 @@ class CertifierActor final : public NodeActor {
     /// records and which an escape splits).
     void CheckCentrally(const slam::PoseGraph& graph, const Eigen::MatrixXd& X,
                         v1::CertificatePath path, const std::map<int, Bundle>& bundles);
-    /// Records `result` as the verdict (Certificate(), NoteVerdict) and sends its report: rank
+    /// Records `result` as the verdict (LastCertificate(), NoteVerdict) and sends its report: rank
     /// r, the graph's edge count `edges`, the path that decided it.
     void Publish(const certify::CertificateResult& result, std::uint32_t rank, std::uint64_t edges,
                  v1::CertificatePath path, const std::map<int, Bundle>& bundles);

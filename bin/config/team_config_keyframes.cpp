@@ -110,7 +110,8 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
                    {"inter_robot_loops", s.inter_robot_loops},
                    {"staircase_level", s.staircase_level},
                    {"restored_from_log", s.restored}};
-        // The synchronous rounds (solver.mode rounds), as solve --distributed reports them
+        // The robot's synchronous rounds (solver.mode rounds): rounds swept, restarts, proposals
+        // it dropped, overlaps a rise ended, converged or gave up
         robot["rounds"] = {{"swept", s.team_rounds},
                            {"restarts", s.restarts},
                            {"rejected_proposals", s.rejected_proposals},

@@ -21,7 +21,8 @@ constexpr int kBlock = kDimension + 1;  // columns per lifted pose
 constexpr double kCostNoise = 1e-14;
 // Once a kept extrapolated round changes f by at most this relative amount, f's changes are too
 // small to show the extrapolation overshooting; the gradient norm still shows it, and a rise of
-// it resets the extrapolation (gradient restart, O'Donoghue and Candes 2015).
+// it resets the extrapolation (a gradient-norm heuristic in the spirit of O'Donoghue and
+// Candes' adaptive restart, whose gradient test is grad^T (x_k - x_{k-1}) > 0).
 constexpr double kFlatCost = 1e-9;
 
 /// RBCD++ (Alg. 3): Proj(X_a + beta (X_a - X_b)) pose by pose; X_a itself when beta is 0.
@@ -294,8 +295,6 @@ void TeamRounds::Decide() {
         accepted_ = current_;
         accepted_cost_ = f;
         accepted_grad_ = grad;
-        gamma_ = plain_ || grad_rose ? 1.0 : gamma_next_;
-        if (grad_rose) ++restarts_;
         if (!within_ && grad <= config_.rel_grad_tol * scale) within_ = current_;
         // Refined, or out of refinement rounds (the rounds' own budget included) at a point
         // still within rel_grad_tol: an accepted round lowers f, not always the gradient.
@@ -306,6 +305,9 @@ void TeamRounds::Decide() {
                 std::min(*within_ + static_cast<std::uint64_t>(config_.refine_rounds), last);
         converged_ = grad <= config_.refine_rel_grad_tol * scale ||
                      (spent && grad <= config_.rel_grad_tol * scale);
+        const bool reset = grad_rose && !converged_;  // a last round has no next one to reset
+        gamma_ = plain_ || reset ? 1.0 : gamma_next_;
+        if (reset) ++restarts_;
     } else {
         ++restarts_;
         gamma_ = 1.0;

@@ -154,9 +154,9 @@ struct HandTeam {
         for (int peer : neighbours.at(r)) team.at(peer).OnPoses(r, round, poses);
     }
     /// Round `round` >= 1: every robot sweeps (colour 0, then the others), then every robot's
-    /// sums, `cost` and squared gradient norm `grad_sq` each; checks each sweep's overlap flag
+    /// sums, `cost` and block gradient norm `grad_norm` each; checks each sweep's overlap flag
     /// against `overlap`.
-    void Round(std::uint64_t round, double cost, bool overlap, double grad_sq = 1.0) {
+    void Round(std::uint64_t round, double cost, bool overlap, double grad_norm = 1.0) {
         for (bool later : {false, true}) {
             for (int r : robots) {
                 if ((team.at(r).SweepColor() > 0) != later) continue;
@@ -168,7 +168,7 @@ struct HandTeam {
         }
         for (int r : robots) {
             ASSERT_EQ(team.at(r).Next().kind, RoundAction::Kind::kEvaluate) << "robot " << r;
-            for (auto& [q, peer] : team) peer.OnSums(r, round, cost, grad_sq);
+            for (auto& [q, peer] : team) peer.OnSums(r, round, cost, grad_norm);
         }
     }
     /// Round 0: placements in id order, then every robot's sums (far from converged).
@@ -357,22 +357,26 @@ TEST(TeamRounds, OnlyARiseWithoutExtrapolationEndsTheOverlap) {
 }
 
 // Once f is flat (it changed by at most 1e-9 f), a kept extrapolated round whose gradient norm
-// rose resets the extrapolation: a restart, and the next round sweeps from that round as it is;
-// a falling gradient keeps extrapolating.
+// rose resets the extrapolation: a restart, and the next round sweeps from that round as it is.
+// A falling gradient, or a rising one while f still falls, keeps extrapolating.
 TEST(TeamRounds, AGradientRiseWhileTheCostIsFlatResetsTheExtrapolation) {
-    for (const bool rise : {false, true}) {
+    struct Case {
+        double cost, grad_norm;  // each robot's at round 2 (round 1: 0.5 and 1)
+        bool reset;
+    };
+    for (const Case c : {Case{0.5, 0.5, false}, Case{0.5, 2.0, true}, Case{0.4, 2.0, false}}) {
         HandTeam t({{0, {1}}, {1, {0, 2}}, {2, {1}}});
-        t.Place();                                 // f = 3
-        t.Round(1, 0.5, true);                     // f = 1.5: the next round extrapolates
-        t.Round(2, 0.5, true, rise ? 4.0 : 0.25);  // f unchanged; the gradient 2x or 0.5x
+        t.Place();                              // f = 3
+        t.Round(1, 0.5, true);                  // f = 1.5: the next round extrapolates
+        t.Round(2, c.cost, true, c.grad_norm);  // f flat or 20 % lower; the gradient 0.5x or 2x
         int sweeps = 0;
         for (int r : t.robots) {
             const RoundAction a = t[r].Next();
-            EXPECT_EQ(t[r].Restarts(), rise ? 1 : 0) << "robot " << r;
+            EXPECT_EQ(t[r].Restarts(), c.reset ? 1 : 0) << "robot " << r << " cost " << c.cost;
             if (a.kind != RoundAction::Kind::kSweep) continue;
             ++sweeps;
             EXPECT_EQ(a.round, 3u);
-            if (rise) {
+            if (c.reset) {
                 EXPECT_EQ(a.own_start, HandTeam::Block(r, 2)) << "round 2 kept, not extrapolated";
             } else {
                 EXPECT_NE(a.own_start, HandTeam::Block(r, 2)) << "extrapolated from round 2";

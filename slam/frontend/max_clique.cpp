@@ -1,112 +1,149 @@
 // Exact maximum clique by branch and bound with a greedy-colouring bound (Tomita & Seki 2003,
-// MCQ), as PCM needs it; dense bit rows keep the candidate intersections cheap.
+// MCQ) on bit sets (San Segundo et al. 2011, BBMC): a candidate set is a row of 64-bit words, so
+// colouring and the candidates' intersection with a vertex's neighbours are word operations.
 #include "slam/frontend/max_clique.h"
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
+#include <numeric>
 #include <vector>
 
 namespace certislam::slam {
 namespace {
 
+using Word = std::uint64_t;
+constexpr int kBits = 64;
+
 class CliqueSearch {
   public:
     CliqueSearch(const std::vector<std::vector<int>>& adjacency, std::int64_t max_nodes)
         : n_(static_cast<int>(adjacency.size())),
-          adjacent_(static_cast<size_t>(n_) * n_, 0),
+          words_((n_ + kBits - 1) / kBits),
+          vertex_of_(static_cast<size_t>(n_)),
+          bit_of_(static_cast<size_t>(n_)),
+          rows_(static_cast<size_t>(n_) * words_, 0),
           max_nodes_(max_nodes) {
+        // Bits in order of non-increasing degree (ties: lower vertex first), so the greedy
+        // colouring, which takes bits in order, colours well-connected vertices first.
+        std::vector<int> degree(static_cast<size_t>(n_), 0);
+        for (int u = 0; u < n_; ++u) {
+            for (const int v : adjacency[u]) degree[u] += (v != u) ? 1 : 0;
+        }
+        std::iota(vertex_of_.begin(), vertex_of_.end(), 0);
+        std::stable_sort(vertex_of_.begin(), vertex_of_.end(),
+                         [&](int a, int b) { return degree[a] > degree[b]; });
+        for (int b = 0; b < n_; ++b) bit_of_[vertex_of_[b]] = b;
         for (int u = 0; u < n_; ++u) {
             for (const int v : adjacency[u]) {
-                if (v != u) adjacent_[Index(u, v)] = adjacent_[Index(v, u)] = 1;
+                if (v == u) continue;
+                Set(Row(bit_of_[u]), bit_of_[v]);
+                Set(Row(bit_of_[v]), bit_of_[u]);
             }
         }
     }
 
     /// Starts from `clique` when it is one (distinct vertices, pairwise adjacent).
     void Seed(const std::vector<int>& clique) {
+        std::vector<int> bits;
         for (size_t i = 0; i < clique.size(); ++i) {
             if (clique[i] < 0 || clique[i] >= n_) return;
-            for (size_t j = 0; j < i; ++j) {
-                if (clique[i] == clique[j] || !adjacent_[Index(clique[i], clique[j])]) return;
+            const int b = bit_of_[clique[i]];
+            for (const int c : bits) {
+                if (!Test(Row(b), c)) return;  // also a repeated vertex: no self-loops
             }
+            bits.push_back(b);
         }
-        best_ = clique;
+        best_ = bits;
     }
 
     std::vector<int> Run() {
-        // Initial order: by degree, highest last (MCQ expands from the end of the list).
-        std::vector<int> order(n_);
-        std::vector<int> degree(n_, 0);
-        for (int u = 0; u < n_; ++u) {
-            order[u] = u;
-            for (int v = 0; v < n_; ++v) degree[u] += adjacent_[Index(u, v)];
-        }
-        std::stable_sort(order.begin(), order.end(),
-                         [&](int a, int b) { return degree[a] < degree[b]; });
-        Expand(order);
-        return best_;
+        std::vector<Word> all(static_cast<size_t>(words_), 0);
+        for (int b = 0; b < n_; ++b) Set(all.data(), b);
+        Expand(all);
+        std::vector<int> clique;
+        for (const int b : best_) clique.push_back(vertex_of_[b]);
+        return clique;
     }
 
     std::int64_t nodes() const { return nodes_; }
     bool exact() const { return nodes_ <= max_nodes_; }
 
   private:
-    size_t Index(int u, int v) const { return static_cast<size_t>(u) * n_ + v; }
+    Word* Row(int b) { return rows_.data() + static_cast<size_t>(b) * words_; }
+    const Word* Row(int b) const { return rows_.data() + static_cast<size_t>(b) * words_; }
+    static void Set(Word* row, int b) { row[b / kBits] |= Word{1} << (b % kBits); }
+    static void Reset(Word* row, int b) { row[b / kBits] &= ~(Word{1} << (b % kBits)); }
+    static bool Test(const Word* row, int b) { return (row[b / kBits] >> (b % kBits)) & 1; }
+    int Count(const std::vector<Word>& set) const {
+        int count = 0;
+        for (const Word w : set) count += std::popcount(w);
+        return count;
+    }
 
-    // Greedy colouring of `candidates` in their order; returns them sorted by colour with
-    // the colour numbers (1-based) in `colours`.
-    void ColourSort(const std::vector<int>& candidates, std::vector<int>& sorted,
+    // Greedy colouring of `candidates` in bit order: colour classes are independent sets, so a
+    // clique takes at most one vertex of each. `order` gets the vertices by colour (1-based in
+    // `colours`), the bound of MCQ.
+    void ColourSort(const std::vector<Word>& candidates, std::vector<int>& order,
                     std::vector<int>& colours) const {
-        std::vector<std::vector<int>> classes;
-        for (const int v : candidates) {
-            size_t c = 0;
-            for (; c < classes.size(); ++c) {
-                const bool conflict = std::any_of(classes[c].begin(), classes[c].end(),
-                                                  [&](int w) { return adjacent_[Index(v, w)]; });
-                if (!conflict) break;
-            }
-            if (c == classes.size()) classes.emplace_back();
-            classes[c].push_back(v);
-        }
-        sorted.clear();
+        order.clear();
         colours.clear();
-        for (size_t c = 0; c < classes.size(); ++c) {
-            for (const int v : classes[c]) {
-                sorted.push_back(v);
-                colours.push_back(static_cast<int>(c) + 1);
+        std::vector<Word> uncoloured = candidates, open(static_cast<size_t>(words_));
+        for (int colour = 1;; ++colour) {
+            open = uncoloured;
+            bool any = false;
+            for (int w = 0; w < words_; ++w) {
+                while (open[w] != 0) {
+                    const int b = w * kBits + std::countr_zero(open[w]);
+                    any = true;
+                    order.push_back(b);
+                    colours.push_back(colour);
+                    Reset(uncoloured.data(), b);
+                    const Word* row = Row(b);
+                    open[w] &= ~(Word{1} << (b % kBits));
+                    for (int x = w; x < words_; ++x) open[x] &= ~row[x];  // neighbours later
+                }
             }
+            if (!any) return;
         }
     }
 
-    void Expand(const std::vector<int>& candidates) {
-        nodes_ += 1 + static_cast<std::int64_t>(candidates.size());
+    void Expand(std::vector<Word> candidates) {
+        nodes_ += 1 + Count(candidates);
         if (nodes_ > max_nodes_) return;
-        std::vector<int> sorted, colours;
-        ColourSort(candidates, sorted, colours);
-        for (int i = static_cast<int>(sorted.size()) - 1; i >= 0; --i) {
+        std::vector<int> order, colours;
+        ColourSort(candidates, order, colours);
+        std::vector<Word> next(static_cast<size_t>(words_));
+        for (int i = static_cast<int>(order.size()) - 1; i >= 0; --i) {
             if (current_.size() + colours[i] <= best_.size()) return;  // bound
-            const int v = sorted[i];
-            current_.push_back(v);
-            std::vector<int> next;
-            for (int k = 0; k < i; ++k) {
-                if (adjacent_[Index(v, sorted[k])]) next.push_back(sorted[k]);
+            const int b = order[i];
+            current_.push_back(b);
+            const Word* row = Row(b);
+            bool empty = true;
+            for (int w = 0; w < words_; ++w) {
+                next[w] = candidates[w] & row[w];
+                empty = empty && next[w] == 0;
             }
-            if (next.empty()) {
+            if (empty) {
                 if (current_.size() > best_.size()) best_ = current_;
             } else {
                 Expand(next);
             }
             current_.pop_back();
+            Reset(candidates.data(), b);  // its cliques are searched
             if (nodes_ > max_nodes_) return;
         }
     }
 
     int n_;
-    std::vector<std::uint8_t> adjacent_;
+    int words_;
+    std::vector<int> vertex_of_;  // bit -> vertex
+    std::vector<int> bit_of_;     // vertex -> bit
+    std::vector<Word> rows_;      // neighbours of each bit, words_ words each
     std::int64_t max_nodes_;
     std::int64_t nodes_ = 0;
-    std::vector<int> current_;
-    std::vector<int> best_;
+    std::vector<int> current_;  // bits
+    std::vector<int> best_;     // bits
 };
 
 }  // namespace

@@ -1,5 +1,5 @@
-// Scan-to-scan registration: the settings check, the yaw guess, clouds prepared once (trees, GICP
-// covariances) and RegisterScans with PCL's GICP
+// Scan-to-scan registration: the settings check, the yaw guess, clouds prepared once (trees,
+// normals, GICP covariances) and RegisterScans with PCL's GICP
 // (the project's only PCL registration translation unit: no PCL header leaves this file).
 #include "slam/frontend/registration.h"
 
@@ -7,6 +7,8 @@
 #include <pcl/point_types.h>
 #include <pcl/registration/gicp.h>
 #include <pcl/search/kdtree.h>
+
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <memory>
@@ -59,7 +61,7 @@ class NanoflannSearch : public pcl::search::KdTree<pcl::PointXYZ> {
 
     int nearestKSearch(const pcl::PointXYZ& point, int k, pcl::Indices& k_indices,
                        std::vector<float>& k_sqr_distances) const override {
-        std::vector<std::size_t> found;
+        thread_local std::vector<std::size_t> found;  // GICP asks once per point and iteration
         nano_->Knn(point.getVector3fMap(), static_cast<std::size_t>(std::max(k, 0)), found,
                    k_sqr_distances);
         k_indices.assign(found.begin(), found.end());
@@ -87,15 +89,34 @@ class NanoflannSearch : public pcl::search::KdTree<pcl::PointXYZ> {
 
 using Gicp = pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>;
 
-// GICP whose per-point covariances (Segal et al. 2009, Sec. III-B) can be computed on their own.
-class CovarianceGicp : public Gicp {
-  public:
-    explicit CovarianceGicp(int neighbours) { setCorrespondenceRandomness(neighbours); }
-    void Compute(const PclCloud::ConstPtr& cloud, const std::shared_ptr<NanoflannSearch>& tree,
-                 MatricesVector& covariances) {
-        computeCovariances<pcl::PointXYZ>(cloud, tree, covariances);
+// GICP's plane-to-plane covariance (Segal et al. 2009, Sec. III-B) of the points `indices`, with
+// PCL's computeCovariances arithmetic (raw moments of float products, so registrations stay
+// those of PCL's GICP) and the smallest-|eigenvalue| direction set to PCL's gicp_epsilon_
+// default, the others to 1: an eigen-decomposition in place of PCL's SVD (equal up to rounding).
+Eigen::Matrix3d PclPlaneCovariance(const PointCloud& cloud,
+                                   const std::vector<std::size_t>& indices) {
+    constexpr double kGicpEpsilon = 1e-3;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const std::size_t j : indices) {
+        const Eigen::Vector3f& p = cloud[j];
+        mean += p.cast<double>();
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c <= r; ++c) cov(r, c) += static_cast<double>(p[r] * p[c]);
+        }
     }
-};
+    const auto k = static_cast<double>(indices.size());
+    mean /= k;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c <= r; ++c) cov(c, r) = cov(r, c) = cov(r, c) / k - mean[r] * mean[c];
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(cov);  // closed form: a 3x3's iterations would cost more than the k-NN
+    int smallest = 0;  // singular values are |eigenvalues|: float rounding can make one negative
+    eig.eigenvalues().cwiseAbs().minCoeff(&smallest);
+    const Eigen::Vector3d u = eig.eigenvectors().col(smallest);
+    return Eigen::Matrix3d::Identity() - (1.0 - kGicpEpsilon) * u * u.transpose();
+}
 
 struct StageResult {
     Eigen::Matrix4f T_target_source;
@@ -108,23 +129,34 @@ struct PreparedCloud::Stage {
     PointCloud points;                      ///< downsampled at the stage's voxel
     PclCloud::Ptr pcl;                      ///< the same points for PCL
     std::shared_ptr<NanoflannSearch> tree;  ///< over pcl (null below min_points)
+    std::vector<Eigen::Vector3d> normals;   ///< PlaneNormal of each k-NN (fine stage only)
     Gicp::MatricesVectorPtr covariances;    ///< GICP's, per point (null below min_points)
 };
 
 namespace {
 
-// Downsampled points; their tree and covariances only when registration will use them.
+// Downsampled points; their tree, covariances and (with `normals`) planes only when registration
+// will use them.
 std::unique_ptr<PreparedCloud::Stage> MakeStage(const PointCloud& cloud, double voxel_m,
-                                                const RegistrationConfig& config) {
+                                                const RegistrationConfig& config, bool normals) {
     auto stage = std::make_unique<PreparedCloud::Stage>();
     stage->points = VoxelDownsample(cloud, voxel_m);
     if (static_cast<int>(stage->points.size()) < config.min_points) return stage;
     stage->pcl = ToPcl(stage->points);
     stage->tree = std::make_shared<NanoflannSearch>();
     stage->tree->setInputCloud(stage->pcl);
+    // One k-NN pass for GICP's covariances and the quality test's planes.
     stage->covariances = std::make_shared<Gicp::MatricesVector>();
-    CovarianceGicp(config.covariance_neighbours)
-        .Compute(stage->pcl, stage->tree, *stage->covariances);
+    stage->covariances->reserve(stage->points.size());
+    if (normals) stage->normals.reserve(stage->points.size());
+    std::vector<std::size_t> indices;
+    std::vector<float> squared;
+    for (const Eigen::Vector3f& p : stage->points) {
+        stage->tree->Tree().Knn(p, static_cast<std::size_t>(config.covariance_neighbours), indices,
+                                squared);
+        stage->covariances->push_back(PclPlaneCovariance(stage->points, indices));
+        if (normals) stage->normals.push_back(PlaneNormal(stage->points, indices));
+    }
     return stage;
 }
 
@@ -196,9 +228,9 @@ PreparedCloud::PreparedCloud(const PointCloud& cloud, const RegistrationConfig& 
       covariance_neighbours_(config.covariance_neighbours),
       min_points_(config.min_points) {
     config.Validate();
-    fine_ = MakeStage(cloud, config.voxel_m, config);
+    fine_ = MakeStage(cloud, config.voxel_m, config, /*normals=*/true);
     if (config.coarse_voxel_m > 0 && fine_->tree) {
-        coarse_ = MakeStage(cloud, config.coarse_voxel_m, config);
+        coarse_ = MakeStage(cloud, config.coarse_voxel_m, config, /*normals=*/false);
         if (!coarse_->tree) coarse_.reset();
     }
 }
@@ -244,8 +276,9 @@ RegistrationResult RegisterScans(const PreparedCloud& source, const PreparedClou
         RunGicp(source.Fine(), target.Fine(), T, config.max_correspondence_m, config);
     result.converged = fine.converged;
     result.T_target_source = ToIsometry(fine.T_target_source);
-    const RegistrationResult::Status quality = EvaluateAlignment(
-        source.Fine().points, target.Fine().points, target.Fine().tree->Tree(), config, result);
+    const RegistrationResult::Status quality =
+        EvaluateAlignment(source.Fine().points, target.Fine().points, target.Fine().tree->Tree(),
+                          target.Fine().normals, config, result);
     result.status = result.converged ? quality : RegistrationResult::Status::kNotConverged;
     return result;
 }

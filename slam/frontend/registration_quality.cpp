@@ -7,7 +7,6 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
 
 #include "slam/core/check.h"
 #include "slam/core/se3.h"
@@ -15,38 +14,6 @@
 
 namespace certislam::slam {
 namespace {
-
-// Unit normal of the target around point `i` (smallest-eigenvalue direction of its k
-// neighbours' covariance), cached per target point.
-class TargetNormals {
-  public:
-    TargetNormals(const PointCloud& target, const PointKdTree& tree, int k)
-        : target_(target), tree_(tree), k_(static_cast<std::size_t>(k)) {}
-
-    const Eigen::Vector3d& At(std::size_t i) {
-        const auto it = cache_.find(i);
-        if (it != cache_.end()) return it->second;
-        tree_.Knn(target_[i], k_, indices_, squared_);
-        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (const std::size_t j : indices_) mean += target_[j].cast<double>();
-        mean /= static_cast<double>(indices_.size());
-        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-        for (const std::size_t j : indices_) {
-            const Eigen::Vector3d d = target_[j].cast<double>() - mean;
-            cov += d * d.transpose();
-        }
-        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-        return cache_.emplace(i, eig.eigenvectors().col(0)).first->second;
-    }
-
-  private:
-    const PointCloud& target_;
-    const PointKdTree& tree_;
-    std::size_t k_;
-    std::vector<std::size_t> indices_;
-    std::vector<float> squared_;
-    std::unordered_map<std::size_t, Eigen::Vector3d> cache_;
-};
 
 // Applies the covariance floor: Omega <- (Omega^+ + diag(floor^2))^-1, through the eigen
 // decomposition so unconstrained directions (zero eigenvalues) stay finite.
@@ -68,21 +35,50 @@ Matrix6 FloorCovariance(const Matrix6& information, const RegistrationConfig& co
 
 }  // namespace
 
+Eigen::Vector3d PlaneNormal(const PointCloud& cloud, const std::vector<std::size_t>& indices) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const std::size_t j : indices) mean += cloud[j].cast<double>();
+    mean /= static_cast<double>(indices.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const std::size_t j : indices) {
+        const Eigen::Vector3d d = cloud[j].cast<double>() - mean;
+        cov += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(cov);  // closed form: cheaper than iterating on a 3x3
+    return eig.eigenvectors().col(0);
+}
+
+std::vector<Eigen::Vector3d> LocalPlaneNormals(const PointCloud& cloud, const PointKdTree& tree,
+                                               int k) {
+    std::vector<Eigen::Vector3d> normals;
+    normals.reserve(cloud.size());
+    std::vector<std::size_t> indices;
+    std::vector<float> squared;
+    for (const Eigen::Vector3f& p : cloud) {
+        tree.Knn(p, static_cast<std::size_t>(k), indices, squared);
+        normals.push_back(PlaneNormal(cloud, indices));
+    }
+    return normals;
+}
+
 RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const PointCloud& target,
                                              const RegistrationConfig& config,
                                              RegistrationResult& result) {
     CERTISLAM_CHECK(!target.empty());
     const PointKdTree tree(target);
-    return EvaluateAlignment(source, target, tree, config, result);
+    return EvaluateAlignment(source, target, tree,
+                             LocalPlaneNormals(target, tree, config.covariance_neighbours), config,
+                             result);
 }
 
 RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const PointCloud& target,
                                              const PointKdTree& tree,
+                                             const std::vector<Eigen::Vector3d>& normals,
                                              const RegistrationConfig& config,
                                              RegistrationResult& result) {
     using Status = RegistrationResult::Status;
-    CERTISLAM_CHECK(!target.empty());
-    TargetNormals normals(target, tree, config.covariance_neighbours);
+    CERTISLAM_CHECK(!target.empty() && normals.size() == target.size());
     const Eigen::Isometry3f T = result.T_target_source.cast<float>();
     const float gate = static_cast<float>(config.inlier_distance_m * config.inlier_distance_m);
     Matrix6 hessian = Matrix6::Zero();  // left perturbation, twist (v, w), target frame
@@ -93,7 +89,7 @@ RegistrationResult::Status EvaluateAlignment(const PointCloud& source, const Poi
         std::size_t j = 0;
         float d2 = 0.0f;
         if (!tree.Nearest(p, j, d2) || d2 > gate) continue;
-        const Eigen::Vector3d& n = normals.At(j);
+        const Eigen::Vector3d& n = normals[j];
         const Eigen::Vector3d pd = p.cast<double>();
         const double r = n.dot(pd - target[j].cast<double>());  // point-to-plane residual
         Vector6 J;

@@ -14,6 +14,8 @@
 #include <string>
 
 #include "slam/frontend/downsample.h"
+#include "slam/frontend/point_kdtree.h"
+#include "slam/frontend/registration_quality.h"
 #include "slam/frontend/scan_context.h"
 #include "slam/io/cloud_io.h"
 #include "tests/data_paths.h"
@@ -218,6 +220,27 @@ TEST(Registration, PreparedCloudsReusedGiveTheSameResult) {
     }
     config.voxel_m = 0.3;
     EXPECT_FALSE(prepared_a.PreparedFor(config));
+}
+
+// The planes registration uses (GICP's covariances, the quality Hessian): on a tilted plane
+// every point's normal is the plane's, far from the origin too (float coordinates at 500 m).
+TEST(Registration, LocalPlaneNormalsAreThePlanesNormalFarFromTheOrigin) {
+    const Eigen::Vector3d n = Eigen::Vector3d(-0.5, 0.2, 1.0).normalized();
+    for (const float offset : {0.0f, 500.0f}) {
+        PointCloud plane;
+        for (int i = 0; i < 30; ++i) {
+            for (int j = 0; j < 30; ++j) {
+                const float x = 0.3f * static_cast<float>(i), y = 0.3f * static_cast<float>(j);
+                plane.emplace_back(offset + x, offset + y, 0.5f * x - 0.2f * y);
+            }
+        }
+        const PointKdTree tree(plane);
+        const std::vector<Eigen::Vector3d> normals = LocalPlaneNormals(plane, tree, 20);
+        ASSERT_EQ(normals.size(), plane.size());
+        for (const Eigen::Vector3d& m : normals) {
+            EXPECT_NEAR(std::abs(m.dot(n)), 1.0, 1e-6) << "offset " << offset;
+        }
+    }
 }
 
 TEST(Downsample, VoxelCountMatchesReadmeWithinFewPercent) {

@@ -174,8 +174,8 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
     gicp.setMaxCorrespondenceDistance(max_correspondence_m);
     gicp.setMaximumIterations(config.max_iterations);
     gicp.setCorrespondenceRandomness(config.covariance_neighbours);
-    gicp.setTransformationEpsilon(1e-6);
-    gicp.setRotationEpsilon(1e-6);
+    gicp.setTransformationEpsilon(config.converged_translation_m);
+    gicp.setRotationEpsilon(config.converged_rotation);
     PclCloud aligned;
     gicp.align(aligned, guess);
     return {gicp.getFinalTransformation(), gicp.hasConverged()};
@@ -201,6 +201,10 @@ void RegistrationConfig::Validate() const {
         Invalid("coarse_max_correspondence_m", coarse_max_correspondence_m, "> 0");
     }
     if (max_iterations < 1) Invalid("max_iterations", max_iterations, ">= 1");
+    if (!(converged_translation_m > 0)) {
+        Invalid("converged_translation_m", converged_translation_m, "> 0");
+    }
+    if (!(converged_rotation > 0)) Invalid("converged_rotation", converged_rotation, "> 0");
     if (covariance_neighbours < 5) Invalid("covariance_neighbours", covariance_neighbours, ">= 5");
     if (min_points < 6) Invalid("min_points", min_points, ">= 6");
     if (!(inlier_distance_m > 0)) Invalid("inlier_distance_m", inlier_distance_m, "> 0");

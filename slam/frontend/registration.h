@@ -12,11 +12,16 @@ namespace certislam::slam {
 
 /// Settings of scan-to-scan registration and of the acceptance tests.
 struct RegistrationConfig {
-    double voxel_m = 0.2;                       ///< fine-stage voxel size, > 0
-    double max_correspondence_m = 1.0;          ///< fine-stage GICP correspondence gate, > 0
-    double coarse_voxel_m = 1.0;                ///< coarse stage voxel (0 = no coarse stage)
-    double coarse_max_correspondence_m = 5.0;   ///< coarse-stage gate, > 0 (absorbs SC's metres)
-    int max_iterations = 50;                    ///< GICP iterations per stage, >= 1
+    double voxel_m = 0.2;                      ///< fine-stage voxel size, > 0
+    double max_correspondence_m = 1.0;         ///< fine-stage GICP correspondence gate, > 0
+    double coarse_voxel_m = 1.0;               ///< coarse stage voxel (0 = no coarse stage)
+    double coarse_max_correspondence_m = 5.0;  ///< coarse-stage gate, > 0 (absorbs SC's metres)
+    int max_iterations = 50;                   ///< GICP iterations per stage, >= 1
+    /// GICP stops once an iteration moves the translation less than this and every entry of
+    /// the rotation less than converged_rotation (far below registration noise: see the
+    /// sigma floors), > 0.
+    double converged_translation_m = 1e-4;
+    double converged_rotation = 1e-5;           ///< see converged_translation_m, > 0
     int covariance_neighbours = 20;             ///< k of GICP's local covariances, >= 5
     int min_points = 100;                       ///< fewer points after downsampling: rejected
     double inlier_distance_m = 0.5;             ///< fitness gate on nearest-neighbour distance

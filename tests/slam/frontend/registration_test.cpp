@@ -11,6 +11,7 @@
 #include <numbers>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 
 #include "slam/frontend/downsample.h"
@@ -241,6 +242,27 @@ TEST(Registration, LocalPlaneNormalsAreThePlanesNormalFarFromTheOrigin) {
             EXPECT_NEAR(std::abs(m.dot(n)), 1.0, 1e-6) << "offset " << offset;
         }
     }
+}
+
+TEST(Registration, ConfigValidationNamesTheField) {
+    const auto message = [](const RegistrationConfig& config) {
+        try {
+            config.Validate();
+        } catch (const std::invalid_argument& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    EXPECT_EQ(message(RegistrationConfig{}), "");
+    RegistrationConfig config;
+    config.converged_translation_m = 0;
+    EXPECT_NE(message(config).find("converged_translation_m"), std::string::npos);
+    config = RegistrationConfig{};
+    config.converged_rotation = -1e-5;
+    EXPECT_NE(message(config).find("converged_rotation"), std::string::npos);
+    config = RegistrationConfig{};
+    config.covariance_neighbours = 3;
+    EXPECT_NE(message(config).find("covariance_neighbours"), std::string::npos);
 }
 
 TEST(Downsample, VoxelCountMatchesReadmeWithinFewPercent) {

@@ -92,6 +92,13 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
     result->settled_skips = anchor.SettledSkips();
 }
 
+bool SameEdges(const std::vector<slam::LoopClosure>& a, const std::vector<slam::LoopClosure>& b) {
+    return std::equal(a.begin(), a.end(), b.begin(), b.end(), [](const auto& x, const auto& y) {
+        return x.a == y.a && x.b == y.b && x.T_a_b.matrix() == y.T_a_b.matrix() &&
+               x.kappa == y.kappa && x.tau == y.tau;
+    });
+}
+
 }  // namespace
 
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
@@ -128,16 +135,30 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
     }
     for (auto& node : nodes) node->Start();
     ActorMissionResult result;
+    // The side work starts on the final graph's edges (the robots then only solve and certify
+    // it) and owns the progress bar from then on.
+    ActorMissionResult final_graph;
+    std::future<void> side;
     const auto deadline = start + std::chrono::duration<double>(timeout_s);
     while (!result.done && Clock::now() < deadline) {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
         result.done = true;
+        bool final = true;
         size_t solved = 0;
+        std::vector<slam::LoopClosure> edges;
         for (auto& node : nodes) {
             result.done = result.done && node->Done();
-            solved += static_cast<size_t>(node->Snapshot().num_poses);
+            const actors::SolverSnapshot snapshot = node->Snapshot();
+            solved += static_cast<size_t>(snapshot.num_poses);
+            final = final && snapshot.final;
+            edges.insert(edges.end(), snapshot.edges.begin(), snapshot.edges.end());
         }
-        if (progress && total > 0) {
+        if (while_meshing && final && !side.valid()) {
+            final_graph.edges = std::move(edges);
+            side = std::async(std::launch::async,
+                              [&while_meshing, &final_graph] { while_meshing(final_graph); });
+        }
+        if (progress && total > 0 && !side.valid()) {
             progress(solved < total ? "actor graph: keyframes in" : "actor graph: certifying",
                      0.9 * static_cast<double>(solved) / static_cast<double>(total));
         }
@@ -145,10 +166,12 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
     result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
     Collect(nodes, &result);
     actors::MapperActor* mapper = nodes.front()->Mapper();
-    if (mapper && progress) progress("actor graph: fusing the mappers' submaps", 0.95);
-    // The side work reads only what Collect filled; the mesh fields below are written here.
-    std::future<void> side;
-    if (while_meshing) {
+    if (mapper && progress && !side.valid()) {
+        progress("actor graph: fusing the mappers' submaps", 0.95);
+    }
+    if (while_meshing && !SameEdges(final_graph.edges, result.edges)) {
+        // Not final after all (or never final: a timeout): the side work again on the end's edges.
+        if (side.valid()) side.get();
         side = std::async(std::launch::async, [&while_meshing, &result] { while_meshing(result); });
     }
     if (mapper) {

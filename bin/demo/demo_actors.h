@@ -58,8 +58,8 @@ struct ActorMissionResult {
 /// Progress of the run: stage and fraction done in [0, 1].
 using ActorProgress = std::function<void(const std::string& stage, double fraction)>;
 
-/// Work on the finished graph (its trajectories, edges, certificate: every field but the map's)
-/// that runs on its own thread while robot 0's mapper fuses the mesh.
+/// Work on the final team graph (only `edges` is filled) on its own thread, from when every
+/// robot's graph is final: beside the rounds, the certificate and robot 0's mesh fusion.
 using WhileMeshing = std::function<void(const ActorMissionResult& graph)>;
 
 /// The cloud of keyframe `index` of `robot`, made when the robot's ingest asks for it.
@@ -69,8 +69,8 @@ using CloudMaker = std::function<slam::PointCloudPtr(int robot, int index)>;
 /// `timeout_s` passes; every `query_stride`-th keyframe queries the loop matcher. A keyframe
 /// without a cloud gets `make_cloud`'s on the robot's own ingest thread, so the robots' scans are
 /// made in parallel and while the team works. The TSDF mappers run with voxels of `voxel_m` (0: no
-/// mapper). `while_meshing` (if set) runs once the graph is done, beside the mesh fusion, and has
-/// returned when this does.
+/// mapper). `while_meshing` (if set) runs once every robot's graph is final (again on the edges
+/// at the end should they differ), and has returned when this does.
 ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe>>& robots,
                                     double timeout_s, double voxel_m, int query_stride,
                                     bool distributed_certificate = true,

@@ -92,6 +92,25 @@ void Collect(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes,
     result->settled_skips = anchor.SettledSkips();
 }
 
+struct Poll {
+    bool done = true;                      // every node done
+    bool final = true;                     // every robot's graph final
+    size_t solved = 0;                     // poses the solvers hold
+    std::vector<slam::LoopClosure> edges;  // the team graph, as Collect gathers it
+};
+
+Poll PollNodes(const std::vector<std::unique_ptr<actors::RobotNode>>& nodes) {
+    Poll poll;
+    for (const auto& node : nodes) {
+        poll.done = poll.done && node->Done();
+        const actors::SolverSnapshot snapshot = node->Snapshot();
+        poll.solved += static_cast<size_t>(snapshot.num_poses);
+        poll.final = poll.final && snapshot.final;
+        poll.edges.insert(poll.edges.end(), snapshot.edges.begin(), snapshot.edges.end());
+    }
+    return poll;
+}
+
 bool SameEdges(const std::vector<slam::LoopClosure>& a, const std::vector<slam::LoopClosure>& b) {
     return std::equal(a.begin(), a.end(), b.begin(), b.end(), [](const auto& x, const auto& y) {
         return x.a == y.a && x.b == y.b && x.T_a_b.matrix() == y.T_a_b.matrix() &&
@@ -142,25 +161,16 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
     const auto deadline = start + std::chrono::duration<double>(timeout_s);
     while (!result.done && Clock::now() < deadline) {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
-        result.done = true;
-        bool final = true;
-        size_t solved = 0;
-        std::vector<slam::LoopClosure> edges;
-        for (auto& node : nodes) {
-            result.done = result.done && node->Done();
-            const actors::SolverSnapshot snapshot = node->Snapshot();
-            solved += static_cast<size_t>(snapshot.num_poses);
-            final = final && snapshot.final;
-            edges.insert(edges.end(), snapshot.edges.begin(), snapshot.edges.end());
-        }
-        if (while_meshing && final && !side.valid()) {
-            final_graph.edges = std::move(edges);
+        Poll now = PollNodes(nodes);
+        result.done = now.done;
+        if (while_meshing && now.final && !side.valid()) {
+            final_graph.edges = std::move(now.edges);
             side = std::async(std::launch::async,
                               [&while_meshing, &final_graph] { while_meshing(final_graph); });
         }
         if (progress && total > 0 && !side.valid()) {
-            progress(solved < total ? "actor graph: keyframes in" : "actor graph: certifying",
-                     0.9 * static_cast<double>(solved) / static_cast<double>(total));
+            progress(now.solved < total ? "actor graph: keyframes in" : "actor graph: certifying",
+                     0.9 * static_cast<double>(now.solved) / static_cast<double>(total));
         }
     }
     result.seconds = std::chrono::duration<double>(Clock::now() - start).count();

@@ -439,21 +439,18 @@ TriangleMesh TsdfVolume::FuseAndMesh(const std::vector<FusePart>& parts, const T
     // ExtractMesh welds them (origins sorted, x first). A slab also fuses the first voxel column
     // of the next: the corners of its last cubes. A block without a leaf has no observed corner.
     TsdfMeshWelder welder;
-    // A packed part is fused from its voxel list (a few bytes a voxel, not its grids), decoded
-    // once for the slabs it spans and dropped after the last.
+    // Packed parts are fused from voxel lists (not grids), decoded once for the slabs they span.
     std::map<std::size_t, TsdfVoxelList> unpacked;
     for (int x0 = x_min & ~(kDim - 1); x_min <= x_max && x0 <= x_max; x0 += slab_blocks * kDim) {
         const int x1 = x0 + slab_blocks * kDim;
         Impl slab(config);
         for (std::size_t i = 0; i < parts.size(); ++i) {
-            if (ranges[i].second < x0 || ranges[i].first > x1) {
-                unpacked.erase(i);
-                continue;
-            }
+            if (ranges[i].second < x0) unpacked.erase(i);  // its last slab is behind
+            if (ranges[i].second < x0 || ranges[i].first > x1) continue;
             const Impl& part = *parts[i].volume->impl_;
             if (part.IsPacked()) {
-                auto it = unpacked.find(i);
-                if (it == unpacked.end()) it = unpacked.emplace(i, UnpackVoxels(part)).first;
+                auto [it, added] = unpacked.try_emplace(i);
+                if (added) it->second = UnpackVoxels(part);
                 FuseTsdfVoxels(slab, it->second, parts[i].T_fused_part, x0, x1);
             } else {
                 FuseTsdfVoxels(slab, part, parts[i].T_fused_part, x0, x1);

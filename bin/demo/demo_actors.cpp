@@ -179,10 +179,12 @@ ActorMissionResult RunThroughActors(const std::vector<std::vector<slam::Keyframe
     if (mapper && progress && !side.valid()) {
         progress("actor graph: fusing the mappers' submaps", 0.95);
     }
-    if (while_meshing && !SameEdges(final_graph.edges, result.edges)) {
-        // Not final after all (or never final: a timeout): the side work again on the end's edges.
+    if (while_meshing && (!side.valid() || !SameEdges(final_graph.edges, result.edges))) {
+        // Never final (a timeout) or not final after all: the side work on the end's edges.
         if (side.valid()) side.get();
-        side = std::async(std::launch::async, [&while_meshing, &result] { while_meshing(result); });
+        final_graph.edges = result.edges;
+        side = std::async(std::launch::async,
+                          [&while_meshing, &final_graph] { while_meshing(final_graph); });
     }
     if (mapper) {
         // Two publish periods: the last re-anchorings reach robot 0's mapper.

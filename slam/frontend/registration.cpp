@@ -92,7 +92,8 @@ using Gicp = pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>
 // GICP's plane-to-plane covariance (Segal et al. 2009, Sec. III-B) of the points `indices`, with
 // PCL's computeCovariances arithmetic (raw moments of float products, so registrations stay
 // those of PCL's GICP) and the smallest-|eigenvalue| direction set to PCL's gicp_epsilon_
-// default, the others to 1: an eigen-decomposition in place of PCL's SVD (equal up to rounding).
+// default, the others to 1: an eigen-decomposition in place of PCL's SVD (the same matrix but in
+// near-degenerate neighbourhoods, where either direction is arbitrary).
 Eigen::Matrix3d PclPlaneCovariance(const PointCloud& cloud,
                                    const std::vector<std::size_t>& indices) {
     constexpr double kGicpEpsilon = 1e-3;
@@ -111,7 +112,7 @@ Eigen::Matrix3d PclPlaneCovariance(const PointCloud& cloud,
         for (int c = 0; c <= r; ++c) cov(c, r) = cov(r, c) = cov(r, c) / k - mean[r] * mean[c];
     }
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-    eig.computeDirect(cov);  // closed form: a 3x3's iterations would cost more than the k-NN
+    eig.computeDirect(cov);  // closed form, no iterations
     int smallest = 0;  // singular values are |eigenvalues|: float rounding can make one negative
     eig.eigenvalues().cwiseAbs().minCoeff(&smallest);
     const Eigen::Vector3d u = eig.eigenvectors().col(smallest);

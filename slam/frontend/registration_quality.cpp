@@ -45,7 +45,7 @@ Eigen::Vector3d PlaneNormal(const PointCloud& cloud, const std::vector<std::size
         cov += d * d.transpose();
     }
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-    eig.computeDirect(cov);  // closed form: cheaper than iterating on a 3x3
+    eig.computeDirect(cov);  // closed form, no iterations
     return eig.eigenvectors().col(0);
 }
 

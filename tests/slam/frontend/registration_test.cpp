@@ -223,8 +223,8 @@ TEST(Registration, PreparedCloudsReusedGiveTheSameResult) {
     EXPECT_FALSE(prepared_a.PreparedFor(config));
 }
 
-// The planes registration uses (GICP's covariances, the quality Hessian): on a tilted plane
-// every point's normal is the plane's, far from the origin too (float coordinates at 500 m).
+// The planes the quality test's point-to-plane Hessian uses: on a tilted plane every point's
+// normal is the plane's, far from the origin too (float coordinates at 500 m).
 TEST(Registration, LocalPlaneNormalsAreThePlanesNormalFarFromTheOrigin) {
     const Eigen::Vector3d n = Eigen::Vector3d(-0.5, 0.2, 1.0).normalized();
     for (const float offset : {0.0f, 500.0f}) {

@@ -5,6 +5,7 @@
 
 #include <zstd.h>
 
+#include <functional>
 #include <future>
 #include <memory>
 #include <stdexcept>
@@ -54,6 +55,10 @@ void MapperConfig::Validate() const {
     if (share_sdf_bits != 8 && share_sdf_bits != 16 && share_sdf_bits != 32) {
         throw std::invalid_argument("MapperConfig.share_sdf_bits = " +
                                     std::to_string(share_sdf_bits) + ": must be 8, 16 or 32");
+    }
+    if (mesh_threads < 1) {
+        throw std::invalid_argument("MapperConfig.mesh_threads = " + std::to_string(mesh_threads) +
+                                    ": must be >= 1");
     }
     if (active_submap_quiet.count() < 0) {
         throw std::invalid_argument(
@@ -258,7 +263,14 @@ void MapperActor::UpdateStats() {
 slam::TriangleMesh MapperActor::MakeMesh(double voxel_m) const {
     slam::TsdfConfig config = config_.map.tsdf;
     config.voxel_size_m = voxel_m;
-    return map_.FusedMesh(config);  // slab by slab: not the whole fused volume at once
+    // Slab by slab (not the whole fused volume at once), in one piece per thread.
+    const auto run = [](int n, const std::function<void(int)>& piece) {
+        std::vector<std::future<void>> others;
+        for (int k = 1; k < n; ++k) others.push_back(std::async(std::launch::async, piece, k));
+        piece(0);
+        for (auto& f : others) f.get();
+    };
+    return map_.FusedMesh(config, config_.mesh_threads, run);
 }
 
 slam::TriangleMesh MapperActor::FusedMesh(double voxel_m) {

@@ -48,6 +48,8 @@ struct MapperConfig {
     /// quantised (weights to one byte): each distance moves by at most 1/65534 (16) or 1/254 (8)
     /// of the submap's largest distance.
     int share_sdf_bits = 16;
+    /// Threads that fuse and mesh the team map's slabs (FusedMesh), >= 1.
+    int mesh_threads = 2;
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;

@@ -320,6 +320,10 @@ std::vector<ConfigKey> MappingAndNetworkKeys() {
             "mapping.zstd_level",
             [](TeamConfig & c, int) -> auto& { return c.node.mapper.zstd_level; }, {0.0, 19.0},
             "zstd level of shared submaps"),
+        Num<int>(
+            "mapping.mesh_threads",
+            [](TeamConfig & c, int) -> auto& { return c.node.mapper.mesh_threads; }, {1.0, 64.0},
+            "threads fusing and meshing the team map"),
         Choice<int>(
             "mapping.share_sdf",
             [](TeamConfig & c, int) -> auto& { return c.node.mapper.share_sdf_bits; },

@@ -170,10 +170,11 @@ TsdfVolume TsdfMap::Fuse(const TsdfConfig& config) const {
     return fused;
 }
 
-TriangleMesh TsdfMap::FusedMesh(const TsdfConfig& config) const {
+TriangleMesh TsdfMap::FusedMesh(const TsdfConfig& config, int pieces,
+                                const TsdfVolume::RunPieces& run) const {
     std::vector<TsdfVolume::FusePart> parts;
     for (const Submap& s : submaps_) parts.push_back({&s.volume, s.T_world_submap});
-    return TsdfVolume::FuseAndMesh(parts, config);
+    return TsdfVolume::FuseAndMesh(parts, config, 8, pieces, run);
 }
 
 // Submap bytes: a fixed little-endian header (ids, anchor pose, keyframes) + the TSDF stream.

@@ -110,8 +110,9 @@ class TsdfMap {
     TsdfVolume Fuse(const TsdfConfig& config) const;
 
     /// Fuse(config)'s mesh, built slab by slab (TsdfVolume::FuseAndMesh): the same mesh without
-    /// the whole fused volume in memory.
-    TriangleMesh FusedMesh(const TsdfConfig& config) const;
+    /// the whole fused volume in memory; in `pieces` that `run` may give threads (FuseAndMesh).
+    TriangleMesh FusedMesh(const TsdfConfig& config, int pieces = 1,
+                           const TsdfVolume::RunPieces& run = {}) const;
 
     /// The submaps, own and received, in insertion order.
     const std::vector<Submap>& submaps() const { return submaps_; }

@@ -1,5 +1,6 @@
 // TsdfVolume: settings, integration (bounded rays through the truncation band) and queries;
-// meshing, fusion and bytes are in tsdf_mesh, tsdf_fuse and tsdf_serialize.
+// meshing, fusion, slab-wise fusion and bytes are in tsdf_mesh, tsdf_fuse, tsdf_slabs and
+// tsdf_serialize.
 #include "slam/mapping/tsdf.h"
 
 #include <zstd.h>
@@ -8,7 +9,6 @@
 #include <bit>
 #include <cmath>
 #include <limits>
-#include <map>
 #include <mutex>
 #include <stdexcept>
 #include <utility>
@@ -232,42 +232,6 @@ std::unique_ptr<TsdfVolume::Impl> UnpackTsdf(const TsdfVolume::Impl& im) {
     return live;
 }
 
-// The voxels of a packed `im`, decoded without building grids (its bytes were checked when kept).
-TsdfVoxelList UnpackVoxels(const TsdfVolume::Impl& im) {
-    std::string error;
-    std::optional<TsdfVoxelList> list = DecodeTsdfVoxels(ZstdUnpack(im.packed), &error);
-    CERTISLAM_CHECK(list.has_value());
-    return std::move(*list);
-}
-
-// The bounding box of the observed voxels of `im`, live or packed.
-openvdb::CoordBBox ActiveBox(const TsdfVolume::Impl& im) {
-    if (!im.IsPacked()) return im.weight->evalActiveVoxelBoundingBox();
-    openvdb::CoordBBox box;
-    UnpackVoxels(im).ForEach([&](const openvdb::Coord& c, float, float) { box.expand(c); });
-    return box;
-}
-
-// The x indices [lo, hi] of a volume of voxel `voxel` that FuseTsdfVoxels maps `src`'s observed
-// voxels to by `T`: the images of their bounding box's corners, widened by one voxel (rounding).
-std::pair<int, int> FusedXRange(const TsdfVolume::Impl& src, const Eigen::Isometry3d& T,
-                                double voxel) {
-    const openvdb::CoordBBox box = ActiveBox(src);
-    if (box.empty()) return {1, 0};
-    const Eigen::Affine3d A =
-        Eigen::Scaling(1.0 / voxel) * T * Eigen::Scaling(src.config.voxel_size_m);
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (int c = 0; c < 8; ++c) {
-        const openvdb::Coord& x = (c & 1) ? box.max() : box.min();
-        const openvdb::Coord& y = (c & 2) ? box.max() : box.min();
-        const openvdb::Coord& z = (c & 4) ? box.max() : box.min();
-        const double fx = (A * Eigen::Vector3d(x.x(), y.y(), z.z())).x();
-        lo = std::min(lo, fx);
-        hi = std::max(hi, fx);
-    }
-    return {static_cast<int>(std::floor(lo)) - 1, static_cast<int>(std::ceil(hi)) + 1};
-}
-
 // The state to read: `im` itself when live, else a decoded copy kept in `*decoded`.
 const TsdfVolume::Impl& Readable(const TsdfVolume::Impl& im,
                                  std::unique_ptr<TsdfVolume::Impl>* decoded) {
@@ -277,6 +241,14 @@ const TsdfVolume::Impl& Readable(const TsdfVolume::Impl& im,
 }
 
 }  // namespace
+
+// Its bytes were checked when they were kept.
+TsdfVoxelList UnpackVoxels(const TsdfVolume::Impl& im) {
+    std::string error;
+    std::optional<TsdfVoxelList> list = DecodeTsdfVoxels(ZstdUnpack(im.packed), &error);
+    CERTISLAM_CHECK(list.has_value());
+    return std::move(*list);
+}
 
 void TsdfConfig::Validate() const {
     Require(voxel_size_m >= 0.01 && voxel_size_m <= 5.0, "voxel_size_m", voxel_size_m,
@@ -420,53 +392,6 @@ void TsdfVolume::FuseVoxels(const TsdfVolume& other, const Eigen::Isometry3d& T_
     std::unique_ptr<Impl> decoded;
     const Impl& src = Readable(*other.impl_, &decoded);
     FuseTsdfVoxels(Writable(), src, T_this_other);
-}
-
-TriangleMesh TsdfVolume::FuseAndMesh(const std::vector<FusePart>& parts, const TsdfConfig& config,
-                                     int slab_blocks) {
-    config.Validate();
-    CERTISLAM_CHECK(slab_blocks >= 1);
-    constexpr int kDim = static_cast<int>(Leaf::DIM);
-    std::vector<std::pair<int, int>> ranges;
-    int x_min = std::numeric_limits<int>::max(), x_max = std::numeric_limits<int>::min();
-    for (const FusePart& p : parts) {
-        ranges.push_back(FusedXRange(*p.volume->impl_, p.T_fused_part, config.voxel_size_m));
-        if (ranges.back().first > ranges.back().second) continue;
-        x_min = std::min(x_min, ranges.back().first);
-        x_max = std::max(x_max, ranges.back().second);
-    }
-    // Slabs start on block edges, so each block is meshed whole in one slab, and in the order
-    // ExtractMesh welds them (origins sorted, x first). A slab also fuses the first voxel column
-    // of the next: the corners of its last cubes. A block without a leaf has no observed corner.
-    TsdfMeshWelder welder;
-    // Packed parts are fused from voxel lists (not grids), decoded once for the slabs they span.
-    std::map<std::size_t, TsdfVoxelList> unpacked;
-    for (int x0 = x_min & ~(kDim - 1); x_min <= x_max && x0 <= x_max; x0 += slab_blocks * kDim) {
-        const int x1 = x0 + slab_blocks * kDim;
-        Impl slab(config);
-        for (std::size_t i = 0; i < parts.size(); ++i) {
-            if (ranges[i].second < x0) unpacked.erase(i);  // its last slab is behind
-            if (ranges[i].second < x0 || ranges[i].first > x1) continue;
-            const Impl& part = *parts[i].volume->impl_;
-            if (part.IsPacked()) {
-                auto [it, added] = unpacked.try_emplace(i);
-                if (added) it->second = UnpackVoxels(part);
-                FuseTsdfVoxels(slab, it->second, parts[i].T_fused_part, x0, x1);
-            } else {
-                FuseTsdfVoxels(slab, part, parts[i].T_fused_part, x0, x1);
-            }
-        }
-        std::vector<openvdb::Coord> origins;
-        for (auto it = slab.weight->tree().cbeginLeaf(); it; ++it) {
-            if (it->origin().x() < x1) origins.push_back(it->origin());
-        }
-        std::sort(origins.begin(), origins.end());
-        for (const openvdb::Coord& o : origins) {
-            const TsdfBlockMesh m = MeshBlock(slab, o);
-            if (!m.triangles.empty()) welder.Add(m);
-        }
-    }
-    return welder.Take();
 }
 
 TriangleMesh TsdfVolume::ExtractMesh() {

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -109,11 +110,17 @@ class TsdfVolume {
         Eigen::Isometry3d T_fused_part = Eigen::Isometry3d::Identity();  ///< its pose
     };
 
+    /// Calls piece(0), ..., piece(n - 1), in any order, on any threads, and returns when all
+    /// have returned. The pieces share no mutable state. Empty: in order, on the caller's thread.
+    using RunPieces = std::function<void(int n, const std::function<void(int)>& piece)>;
+
     /// The mesh of a volume with `config` into which every part was fused in order (FuseVoxels,
     /// then ExtractMesh), built in slabs of `slab_blocks` 8^3 blocks along x: the same mesh, with
-    /// one slab of the fused volume (and one decoded packed part) in memory at a time.
+    /// one slab of the fused volume (and one decoded packed part) per piece in memory at a time.
+    /// The slabs are split into `pieces` runs of about equal fusion work, which `run` meshes
+    /// (the caller may give it threads; this library starts none), then welded in order.
     static TriangleMesh FuseAndMesh(const std::vector<FusePart>& parts, const TsdfConfig& config,
-                                    int slab_blocks = 8);
+                                    int slab_blocks = 8, int pieces = 1, const RunPieces& run = {});
 
     /// The zero level set as a mesh in the volume frame (marching cubes over cubes whose 8
     /// corners weigh more than min_mesh_weight). Incremental: only the 8^3 blocks touched since

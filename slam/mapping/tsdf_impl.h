@@ -32,4 +32,9 @@ struct TsdfVolume::Impl {
     bool IsPacked() const { return sdf == nullptr; }
 };
 
+struct TsdfVoxelList;
+
+/// The voxels of a packed `im`, decoded without building its grids.
+TsdfVoxelList UnpackVoxels(const TsdfVolume::Impl& im);
+
 }  // namespace certislam::slam

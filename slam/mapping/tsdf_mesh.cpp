@@ -132,7 +132,10 @@ void TsdfMeshWelder::Add(const TsdfBlockMesh& m) {
     for (std::size_t i = 0; i < m.vertices.size(); ++i) {
         const auto [it, fresh] =
             index_of_.emplace(m.edge_keys[i], static_cast<int>(mesh_.vertices.size()));
-        if (fresh) mesh_.vertices.push_back(m.vertices[i]);
+        if (fresh) {
+            mesh_.vertices.push_back(m.vertices[i]);
+            keys_.push_back(m.edge_keys[i]);
+        }
         global_[i] = it->second;
     }
     for (const auto& t : m.triangles) {
@@ -143,7 +146,18 @@ void TsdfMeshWelder::Add(const TsdfBlockMesh& m) {
 TriangleMesh TsdfMeshWelder::Take() {
     TriangleMesh out = std::move(mesh_);
     mesh_ = {};
+    keys_.clear();
     index_of_.clear();
+    return out;
+}
+
+TsdfBlockMesh TsdfMeshWelder::TakeKeyed() {
+    TsdfBlockMesh out;
+    out.edge_keys = std::move(keys_);
+    keys_ = {};
+    TriangleMesh mesh = Take();
+    out.vertices = std::move(mesh.vertices);
+    out.triangles = std::move(mesh.triangles);
     return out;
 }
 

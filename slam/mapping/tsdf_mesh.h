@@ -32,9 +32,13 @@ class TsdfMeshWelder {
     void Add(const TsdfBlockMesh& block);
     /// The welded mesh so far (the welder is left empty).
     TriangleMesh Take();
+    /// The same with each vertex's edge key: a piece that another welder can Add after the
+    /// pieces before it, to give the mesh of all their blocks welded in order.
+    TsdfBlockMesh TakeKeyed();
 
   private:
     TriangleMesh mesh_;
+    std::vector<std::uint64_t> keys_;                  // mesh vertex -> edge key
     std::unordered_map<std::uint64_t, int> index_of_;  // edge key -> vertex index
     std::vector<int> global_;                          // block vertex -> mesh vertex
 };

@@ -15,6 +15,7 @@
 #pragma once
 
 #include <array>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -49,8 +50,18 @@ struct TsdfVoxelList {
     /// Calls f(ijk, sdf, weight) for every active voxel, in the order of a grid's ValueOn walk.
     template <typename F>
     void ForEach(F&& f) const {
+        ForEachIn([](const openvdb::Coord&) { return true; }, f);
+    }
+
+    /// The same for the voxels of the leaves whose origin `keep_leaf` keeps.
+    template <typename Keep, typename F>
+    void ForEachIn(Keep&& keep_leaf, F&& f) const {
         std::size_t v = 0;
         for (std::size_t l = 0; l < origins.size(); ++l) {
+            if (!keep_leaf(origins[l])) {
+                for (const std::uint64_t word : masks[l]) v += std::popcount(word);
+                continue;
+            }
             for (int i = 0; i < 512; ++i) {
                 if ((masks[l][i >> 6] >> (i & 63) & 1) == 0) continue;
                 f(origins[l].offsetBy(i >> 6, (i >> 3) & 7, i & 7), sdf[v], weight[v]);

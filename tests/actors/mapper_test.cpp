@@ -184,6 +184,19 @@ TEST(MapperConfig, RejectsANegativeActiveSubmapQuiet) {
     EXPECT_THROW(config.Validate(), std::invalid_argument);
 }
 
+TEST(MapperConfig, RejectsNoMeshThreadNamingTheField) {
+    MapperConfig config;
+    config.mesh_threads = 0;
+    try {
+        config.Validate();
+        FAIL() << "0 mesh threads accepted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("mesh_threads = 0"), std::string::npos);
+    }
+    config.mesh_threads = 1;
+    EXPECT_NO_THROW(config.Validate());
+}
+
 TEST(MapperConfig, RejectsDistanceBitsOtherThan8_16Or32) {
     MapperConfig config;
     config.share_sdf_bits = 12;

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <functional>
+#include <future>
 #include <random>
 #include <stdexcept>
 
@@ -213,6 +215,27 @@ TEST(TsdfMap, FusedMeshBySlabsEqualsTheMeshOfTheFusedVolume) {
         EXPECT_EQ(slabs.triangles, whole.triangles) << blocks;
         EXPECT_EQ(MaxVertexDistance(slabs, whole), 0.0) << blocks;
     }
+    // In pieces, run in reverse order or on threads, and welded in order: still the same mesh
+    // (the pieces' vertices on shared grid edges are kept once).
+    const TsdfVolume::RunPieces reverse = [](int n, const std::function<void(int)>& piece) {
+        for (int k = n - 1; k >= 0; --k) piece(k);
+    };
+    const TsdfVolume::RunPieces threads = [](int n, const std::function<void(int)>& piece) {
+        std::vector<std::future<void>> all;
+        for (int k = 0; k < n; ++k) all.push_back(std::async(std::launch::async, piece, k));
+        for (auto& f : all) f.get();
+    };
+    for (const int pieces : {2, 3, 7, 1000}) {  // 1000: more pieces than slabs, most empty
+        for (const auto* run : {&reverse, &threads}) {
+            if (pieces == 1000 && run == &threads) continue;
+            const TriangleMesh meshed =
+                TsdfVolume::FuseAndMesh(parts, fused_config, 1, pieces, *run);
+            ASSERT_EQ(meshed.vertices.size(), whole.vertices.size()) << pieces;
+            EXPECT_EQ(meshed.triangles, whole.triangles) << pieces;
+            EXPECT_EQ(MaxVertexDistance(meshed, whole), 0.0) << pieces;
+        }
+    }
+    EXPECT_EQ(map.FusedMesh(fused_config, 2, threads).triangles, whole.triangles);
 }
 
 TEST(TsdfMap, KeepsWithinItsMemoryBudgetByCoarseningThenSkipping) {

@@ -264,8 +264,8 @@ bool LoopMatcherActor::OnCloudReply(const transport::Message& m) {
 
 void LoopMatcherActor::Verify(const slam::LoopCandidate& c,
                               const slam::PointCloudPtr& match_cloud) {
-    auto source = Prepared(c.query, own_clouds_.at(c.query.index));
-    auto target = Prepared(c.match, match_cloud);
+    auto source = Prepared(c.query, own_clouds_.at(c.query.index), /*as_target=*/false);
+    auto target = Prepared(c.match, match_cloud, /*as_target=*/true);
     // Prepared clouds are only read while registering (const trees and covariances).
     auto task = std::make_shared<std::packaged_task<slam::RegistrationResult()>>(
         [source = std::move(source), target = std::move(target), yaw = c.yaw_rad,
@@ -320,21 +320,25 @@ void LoopMatcherActor::Apply(const slam::LoopCandidate& c, const slam::Registrat
 
 const slam::PreparedCloud& LoopMatcherActor::LazyPrepared::Get() {
     std::call_once(once_, [this] {
-        prepared_ = std::make_unique<const slam::PreparedCloud>(*cloud_, config_);
+        prepared_ = std::make_unique<const slam::PreparedCloud>(*cloud_, config_, as_target_);
         cloud_.reset();
     });
     return *prepared_;
 }
 
 std::shared_ptr<LoopMatcherActor::LazyPrepared> LoopMatcherActor::Prepared(
-    const slam::PoseId& id, const slam::PointCloudPtr& cloud) {
+    const slam::PoseId& id, const slam::PointCloudPtr& cloud, bool as_target) {
     const auto order = std::find(prepared_order_.begin(), prepared_order_.end(), id);
-    if (order != prepared_order_.end()) {  // used again: now the latest
+    if (order != prepared_order_.end()) {
         prepared_order_.erase(order);
-        prepared_order_.push_back(id);
-        return prepared_.at(id);
+        const auto kept = prepared_.find(id);
+        if (!as_target || kept->second->as_target()) {  // used again: now the latest
+            prepared_order_.push_back(id);
+            return kept->second;
+        }
+        prepared_.erase(kept);  // a source only: prepared again below, as a target
     }
-    auto prepared = std::make_shared<LazyPrepared>(cloud, config_.registration);
+    auto prepared = std::make_shared<LazyPrepared>(cloud, config_.registration, as_target);
     if (config_.prepared_clouds == 0) return prepared;
     if (static_cast<int>(prepared_order_.size()) >= config_.prepared_clouds) {
         prepared_.erase(prepared_order_.front());

@@ -108,13 +108,17 @@ class LoopMatcherActor final : public NodeActor {
     /// A cloud prepared for registration by the first worker that needs it (others wait).
     class LazyPrepared {
       public:
-        LazyPrepared(slam::PointCloudPtr cloud, const slam::RegistrationConfig& config)
-            : cloud_(std::move(cloud)), config_(config) {}
+        LazyPrepared(slam::PointCloudPtr cloud, const slam::RegistrationConfig& config,
+                     bool as_target)
+            : cloud_(std::move(cloud)), config_(config), as_target_(as_target) {}
         const slam::PreparedCloud& Get();
+        /// True when prepared (or to be) as a target: it serves as a source as well.
+        bool as_target() const { return as_target_; }
 
       private:
         std::once_flag once_;
         slam::PointCloudPtr cloud_;  ///< released once prepared
+        bool as_target_ = true;
         slam::RegistrationConfig config_;
         std::unique_ptr<const slam::PreparedCloud> prepared_;
     };
@@ -133,9 +137,10 @@ class LoopMatcherActor final : public NodeActor {
     /// for the head until at most `at_most` are left queued.
     void ApplyRegistrations(std::size_t at_most);
     void Apply(const slam::LoopCandidate& candidate, const slam::RegistrationResult& result);
-    /// `cloud` of keyframe `id` to be prepared for registration, kept among the latest used.
-    std::shared_ptr<LazyPrepared> Prepared(const slam::PoseId& id,
-                                           const slam::PointCloudPtr& cloud);
+    /// `cloud` of keyframe `id` to be prepared for registration (`as_target`: as a candidate's
+    /// target, which a source-only preparation cannot serve), kept among the latest used.
+    std::shared_ptr<LazyPrepared> Prepared(const slam::PoseId& id, const slam::PointCloudPtr& cloud,
+                                           bool as_target);
     void RequestCloud(std::uint64_t id, const Pending& p);
     slam::PointCloudPtr ReplyCloud(int index);
     void OnOwnKeyframe(const slam::Keyframe& keyframe);

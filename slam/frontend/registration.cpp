@@ -227,13 +227,15 @@ Eigen::Isometry3d YawGuess(double yaw_rad) {
     return T;
 }
 
-PreparedCloud::PreparedCloud(const PointCloud& cloud, const RegistrationConfig& config)
+PreparedCloud::PreparedCloud(const PointCloud& cloud, const RegistrationConfig& config,
+                             bool as_target)
     : voxel_m_(config.voxel_m),
       coarse_voxel_m_(config.coarse_voxel_m),
       covariance_neighbours_(config.covariance_neighbours),
-      min_points_(config.min_points) {
+      min_points_(config.min_points),
+      as_target_(as_target) {
     config.Validate();
-    fine_ = MakeStage(cloud, config.voxel_m, config, /*normals=*/true);
+    fine_ = MakeStage(cloud, config.voxel_m, config, /*normals=*/as_target);
     if (config.coarse_voxel_m > 0 && fine_->tree) {
         coarse_ = MakeStage(cloud, config.coarse_voxel_m, config, /*normals=*/false);
         if (!coarse_->tree) coarse_.reset();
@@ -253,15 +255,16 @@ bool PreparedCloud::PreparedFor(const RegistrationConfig& config) const {
 RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& target,
                                  const Eigen::Isometry3d& T_target_source_guess,
                                  const RegistrationConfig& config) {
-    return RegisterScans(PreparedCloud(source, config), PreparedCloud(target, config),
-                         T_target_source_guess, config);
+    return RegisterScans(PreparedCloud(source, config, /*as_target=*/false),
+                         PreparedCloud(target, config), T_target_source_guess, config);
 }
 
 RegistrationResult RegisterScans(const PreparedCloud& source, const PreparedCloud& target,
                                  const Eigen::Isometry3d& T_target_source_guess,
                                  const RegistrationConfig& config) {
     config.Validate();
-    CERTISLAM_CHECK(source.PreparedFor(config) && target.PreparedFor(config));
+    CERTISLAM_CHECK(source.PreparedFor(config) && target.PreparedFor(config) &&
+                    target.PreparedAsTarget());
     RegistrationResult result;
     result.T_target_source = T_target_source_guess;
     result.num_source_points = source.NumFinePoints();

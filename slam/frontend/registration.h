@@ -74,8 +74,9 @@ Eigen::Isometry3d YawGuess(double yaw_rad);
 /// local covariances), so a keyframe that is in several candidates is prepared only once.
 class PreparedCloud {
   public:
-    /// Prepares `cloud` for RegisterScans with `config` (validated here).
-    PreparedCloud(const PointCloud& cloud, const RegistrationConfig& config);
+    /// Prepares `cloud` for RegisterScans with `config` (validated here). `as_target`: also the
+    /// local planes the quality test reads at a target's points (a source needs none).
+    PreparedCloud(const PointCloud& cloud, const RegistrationConfig& config, bool as_target = true);
     ~PreparedCloud();
     PreparedCloud(const PreparedCloud&) = delete;
     PreparedCloud& operator=(const PreparedCloud&) = delete;
@@ -89,10 +90,13 @@ class PreparedCloud {
     int NumFinePoints() const;
     /// True when prepared with the settings RegisterScans uses from `config`.
     bool PreparedFor(const RegistrationConfig& config) const;
+    /// True when prepared as a target (with its local planes).
+    bool PreparedAsTarget() const { return as_target_; }
 
   private:
     double voxel_m_ = 0.0, coarse_voxel_m_ = 0.0;
     int covariance_neighbours_ = 0, min_points_ = 0;
+    bool as_target_ = true;
     std::unique_ptr<Stage> fine_, coarse_;
 };
 
@@ -103,7 +107,8 @@ RegistrationResult RegisterScans(const PointCloud& source, const PointCloud& tar
                                  const Eigen::Isometry3d& T_target_source_guess,
                                  const RegistrationConfig& config);
 
-/// RegisterScans on clouds prepared with `config` (the same result, without preparing again).
+/// RegisterScans on clouds prepared with `config`, `target` as a target (the same result,
+/// without preparing again).
 RegistrationResult RegisterScans(const PreparedCloud& source, const PreparedCloud& target,
                                  const Eigen::Isometry3d& T_target_source_guess,
                                  const RegistrationConfig& config);

@@ -219,6 +219,17 @@ TEST(Registration, PreparedCloudsReusedGiveTheSameResult) {
         EXPECT_TRUE(
             back.T_target_source.isApprox(RegisterScans(a, b, I, config).T_target_source, 1e-12));
     }
+    // A cloud prepared as a source only (no local planes) gives the same result as a source.
+    const PreparedCloud source_b(b, config, /*as_target=*/false);
+    EXPECT_TRUE(prepared_a.PreparedAsTarget());
+    EXPECT_FALSE(source_b.PreparedAsTarget());
+    const auto I = Eigen::Isometry3d::Identity();
+    const RegistrationResult full = RegisterScans(prepared_b, prepared_a, I, config);
+    const RegistrationResult lean = RegisterScans(source_b, prepared_a, I, config);
+    EXPECT_EQ(lean.status, full.status);
+    EXPECT_TRUE(lean.T_target_source.isApprox(full.T_target_source, 1e-12));
+    EXPECT_DOUBLE_EQ(lean.fitness, full.fitness);
+    EXPECT_DOUBLE_EQ(lean.inlier_rmse_m, full.inlier_rmse_m);
     config.voxel_m = 0.3;
     EXPECT_FALSE(prepared_a.PreparedFor(config));
 }

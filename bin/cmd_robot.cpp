@@ -52,7 +52,7 @@ int RunKeyframeRobot(const RobotCommandOptions& o, zmq::context_t& context,
         [&] {
             if (o.out_dir.empty()) return;
             const std::string now = WriteTeamOutputs(
-                o.out_dir, {id}, states(), source, node.BytesSentToPeers(),
+                o.out_dir, {id}, states(), source, CountTeam({id}, {&node}),
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                 "");
             std::ofstream(o.out_dir + "/robot" + std::to_string(id) + ".report.json")
@@ -63,14 +63,13 @@ int RunKeyframeRobot(const RobotCommandOptions& o, zmq::context_t& context,
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const auto snapshot = node.Snapshot();
-    const auto bytes = node.BytesSentToPeers();
-    const auto bytes_by_actor = node.BytesSentToPeersByActor();
+    const TeamCounters counters = CountTeam({id}, {&node});
     // After the deadline the mapper is not waited for: no mesh then.
     const nlohmann::json mesh = done ? WriteRobotMesh(node, node_config, id, o.out_dir) : nullptr;
     node.RequestStop();
     auto report = nlohmann::json::parse(
-        WriteTeamOutputs(o.out_dir, {id}, {snapshot}, source, bytes, seconds, ""));
-    AddActorCounters(node, bytes_by_actor, &report);
+        WriteTeamOutputs(o.out_dir, {id}, {snapshot}, source, counters, seconds, ""));
+    AddActorCounters(node, counters.bytes_by_actor, &report);
     if (!mesh.is_null()) report["mesh"] = mesh;
     const std::string text = report.dump(2);
     if (!o.out_dir.empty()) {

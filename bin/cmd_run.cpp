@@ -68,9 +68,9 @@ int RunTeam(const TeamConfig& config, const RunOptions& o,
         return now;
     };
     const auto sent = [&] {
-        std::uint64_t bytes = 0;
-        for (auto& node : nodes) bytes += node->BytesSentToPeers();
-        return bytes;
+        std::vector<const actors::RobotNode*> all;
+        for (auto& node : nodes) all.push_back(node.get());
+        return CountTeam(config.robots, all);
     };
     Progress progress("certislam run", MakeProgressConfig(o.progress_s, o.snapshot_s), [&] {
         if (!o.out_dir.empty()) {
@@ -87,7 +87,7 @@ int RunTeam(const TeamConfig& config, const RunOptions& o,
         start, o.timeout_s, &progress, states);
     const double seconds = elapsed();
     const std::vector<actors::SolverSnapshot> snapshots = states();
-    const std::uint64_t bytes = sent();
+    const TeamCounters bytes = sent();
     std::vector<nlohmann::json> meshes;                  // the anchor's fuses the team's submaps
     for (size_t k = 0; k < nodes.size() && done; ++k) {  // after the deadline: no meshes
         meshes.push_back(WriteRobotMesh(*nodes[k], node_configs[k], config.robots[k], o.out_dir));

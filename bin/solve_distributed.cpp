@@ -45,7 +45,10 @@ int PrintDistributedReport(nlohmann::json* j, const actors::PoseGraphTeamResult&
             (*j)["certified"] = false;
             (*j)["verdict"] = "inconclusive";
             (*j)["reason"] = "the certified optimum of the planar graph's lift leaves the plane";
-            j->erase("suboptimality_bound");
+            for (const char* key :
+                 {"lower_bound", "suboptimality_bound", "relative_suboptimality_bound"}) {
+                j->erase(key);
+            }
         }
     }
     (*j)["file"] = o.file;

@@ -58,9 +58,13 @@ nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots,
     j["iterations_by_robot"] = steps;
     if (r.report) {
         j["lambda_min"] = report.lambda_min();
-        // Only a bound the report carries (a zero field is an absent one, not a proof of f*).
-        if (certified && report.suboptimality_bound() > 0.0) {
+        // Only a proven bound (S + eta D shown PSD), as `solve` and `run` print it; the file's
+        // lower bound adds the merged parallel edges' constant, as its cost does.
+        if (r.done && report.has_bound()) {
+            j["lower_bound"] = report.lower_bound() + r.cost_offset;
             j["suboptimality_bound"] = report.suboptimality_bound();
+            j["relative_suboptimality_bound"] =
+                cost > 0.0 ? report.suboptimality_bound() / cost : 0.0;
         }
     }
     if (!r.done) j["reason"] = "not certified before the timeout";

@@ -159,6 +159,32 @@ TEST_F(Run, SimulatedTeamReportsOneCertifiedObjectiveWithItsProvenBound) {
     EXPECT_LE((objective - lower) / objective, kMaxRelativeBound);
     // One X, one graph: the duality gap is tr(X S X^T) >= -eta d n, tiny against f.
     EXPECT_GE(report.at("duality_gap").get<double>(), -kMaxRelativeBound * objective);
+    // The keys of `solve --distributed`: the bound, team rounds, bytes by actor and robot.
+    EXPECT_NEAR(report.at("suboptimality_bound").get<double>(), objective - lower,
+                1e-9 * objective);
+    const auto& bytes = report.at("bytes_between_robots");
+    const auto total = bytes.at("total").get<std::uint64_t>();
+    EXPECT_EQ(total, report.at("bytes_sent").get<std::uint64_t>());
+    EXPECT_GT(total, 0u);
+    for (const char* part : {"by_actor", "by_robot"}) {
+        std::uint64_t sum = 0;
+        for (const auto& [name, n] : bytes.at(part).items()) sum += n.get<std::uint64_t>();
+        EXPECT_EQ(sum, total) << part;
+    }
+    EXPECT_GT(bytes.at("by_actor").at("solver").get<std::uint64_t>(), 0u);
+    EXPECT_EQ(bytes.at("by_robot").size(), 2u);
+    std::uint64_t most = 0;
+    for (const auto& robot : report.at("robots")) {
+        const auto swept = robot.at("rounds").at("swept").get<std::uint64_t>();
+        EXPECT_EQ(report.at("iterations_by_robot")
+                      .at(std::to_string(robot.at("id").get<int>()))
+                      .get<std::uint64_t>(),
+                  swept);
+        most = std::max(most, swept);
+    }
+    EXPECT_EQ(report.at("iterations").get<std::uint64_t>(), most);
+    EXPECT_GE(report.at("certificate_rounds").get<int>(), 1);
+    EXPECT_GT(report.at("lanczos_steps").get<std::uint64_t>(), 0u);
 }
 
 TEST_F(Run, ShowsProgressAndWritesSnapshotsBeforeItEnds) {

@@ -57,6 +57,13 @@ TEST(SolveDistributed, TwoAndFiveRobotsCertifyTheInProcessOptimumAndSayWhichPath
         for (const auto& [actor, n] : bytes["by_actor"].items()) sum += n.get<std::uint64_t>();
         EXPECT_EQ(sum, bytes["total"].get<std::uint64_t>());
         EXPECT_EQ(static_cast<int>(bytes["by_robot"].size()), robots);
+        // The proven bound under `solve`'s keys: f* >= lower_bound, within 1e-6 of the cost.
+        ASSERT_TRUE(team.contains("lower_bound")) << file << ": certified without its bound";
+        const double cost = team["cost"].get<double>(), lower = team["lower_bound"].get<double>();
+        EXPECT_LE(lower, cost);
+        EXPECT_LE(lower, central["cost"].get<double>() * (1.0 + kRelCost));
+        EXPECT_NEAR(team["suboptimality_bound"].get<double>(), cost - lower, 1e-9 * cost);
+        EXPECT_LE(team["relative_suboptimality_bound"].get<double>(), 1e-6);
     }
 }
 

@@ -15,6 +15,7 @@
 #include "actors/convert_descriptor.h"
 #include "actors/streams.h"
 #include "certislam/v1/control.pb.h"
+#include "slam/core/check.h"
 #include "slam/frontend/downsample.h"
 
 namespace certislam::actors {
@@ -332,6 +333,7 @@ std::shared_ptr<LoopMatcherActor::LazyPrepared> LoopMatcherActor::Prepared(
     if (order != prepared_order_.end()) {
         prepared_order_.erase(order);
         const auto kept = prepared_.find(id);
+        CERTISLAM_CHECK(kept != prepared_.end());
         if (!as_target || kept->second->as_target()) {  // used again: now the latest
             prepared_order_.push_back(id);
             return kept->second;

@@ -118,8 +118,8 @@ class LoopMatcherActor final : public NodeActor {
       private:
         std::once_flag once_;
         slam::PointCloudPtr cloud_;  ///< released once prepared
-        bool as_target_ = true;
         slam::RegistrationConfig config_;
+        bool as_target_ = true;
         std::unique_ptr<const slam::PreparedCloud> prepared_;
     };
     struct Registration {  ///< a candidate on the workers

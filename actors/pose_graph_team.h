@@ -3,7 +3,9 @@
 // quiet) or a timeout, and says what it cost (team rounds, bytes between robots, certificate).
 #pragma once
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -52,9 +54,46 @@ struct PoseGraphTeamResult {
     double cost_offset = 0.0;
 };
 
-/// What `nodes` (the anchor first) have done so far: counters summed or maxed over them, the
-/// anchor's report and certificate counters; `done` and `seconds` are left to the caller.
-PoseGraphTeamResult SummariseNodes(const std::vector<const PoseGraphNode*>& nodes);
+/// What `nodes` (the anchor first; PoseGraphNode or RobotNode) have done so far: counters summed
+/// or maxed over them, the anchor's report and certificate counters; `done` and `seconds` are
+/// left to the caller.
+template <typename Node>
+PoseGraphTeamResult SummariseNodes(const std::vector<const Node*>& nodes) {
+    PoseGraphTeamResult out;
+    bool sync = true;
+    for (const auto& node : nodes) {
+        const SolverSnapshot s = node->Snapshot();
+        out.iterations_by_robot[node->robot()] = s.steps;
+        out.iterations = std::max(out.iterations, s.steps);
+        for (const auto& [actor, bytes] : node->BytesSentToPeersByActor()) {
+            out.bytes_by_actor[actor] += bytes;
+            out.bytes_by_robot[node->robot()] += bytes;
+            out.bytes_between_robots += bytes;
+        }
+        out.escapes += node->Certifier().Escapes();
+        out.rejected_proposals += s.rejected_proposals;
+        for (const auto& pose : s.trajectory) {
+            const Eigen::Isometry3d& T = pose.T_world_body;
+            out.out_of_plane_m = std::max(out.out_of_plane_m, std::abs(T.translation().z()));
+            const double cos_tilt = std::clamp(T.linear()(2, 2), -1.0, 1.0);
+            out.out_of_plane_rad = std::max(out.out_of_plane_rad, std::acos(cos_tilt));
+        }
+        sync = sync && s.rounds_converged && !s.rounds_gave_up;
+    }
+    out.solver_mode = sync ? "synchronous" : "asynchronous";
+    if (nodes.empty()) return out;
+    const Node& anchor = *nodes.front();
+    const SolverSnapshot s = anchor.Snapshot();
+    out.report = s.report;
+    out.rank = s.rank;
+    out.restarts = s.restarts;
+    out.overlap_ends = s.overlap_ends;
+    out.fallbacks = anchor.Certifier().Fallbacks();
+    out.certificate_rounds = anchor.Certifier().Rounds();
+    out.lanczos_steps = anchor.Certifier().LanczosSteps();
+    out.certificate_seconds = anchor.Certifier().RoundSeconds();
+    return out;
+}
 
 /// Runs `graphs` (robot k = graphs[k].robot, ascending from 0) in one process over inproc until
 /// all are done or `timeout` passes.

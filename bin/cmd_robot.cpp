@@ -52,7 +52,8 @@ int RunKeyframeRobot(const RobotCommandOptions& o, zmq::context_t& context,
         [&] {
             if (o.out_dir.empty()) return;
             const std::string now = WriteTeamOutputs(
-                o.out_dir, {id}, states(), source, CountTeam({id}, {&node}),
+                o.out_dir, {id}, states(), source,
+                actors::SummariseNodes<actors::RobotNode>({&node}),
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                 "");
             std::ofstream(o.out_dir + "/robot" + std::to_string(id) + ".report.json")
@@ -63,7 +64,7 @@ int RunKeyframeRobot(const RobotCommandOptions& o, zmq::context_t& context,
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const auto snapshot = node.Snapshot();
-    const TeamCounters counters = CountTeam({id}, {&node});
+    const actors::PoseGraphTeamResult counters = actors::SummariseNodes<actors::RobotNode>({&node});
     // After the deadline the mapper is not waited for: no mesh then.
     const nlohmann::json mesh = done ? WriteRobotMesh(node, node_config, id, o.out_dir) : nullptr;
     node.RequestStop();

@@ -68,9 +68,9 @@ int RunTeam(const TeamConfig& config, const RunOptions& o,
         return now;
     };
     const auto sent = [&] {
-        std::vector<const actors::RobotNode*> all;
+        std::vector<const actors::RobotNode*> all;  // the anchor (the first robot) first
         for (auto& node : nodes) all.push_back(node.get());
-        return CountTeam(config.robots, all);
+        return actors::SummariseNodes(all);
     };
     Progress progress("certislam run", MakeProgressConfig(o.progress_s, o.snapshot_s), [&] {
         if (!o.out_dir.empty()) {
@@ -87,13 +87,13 @@ int RunTeam(const TeamConfig& config, const RunOptions& o,
         start, o.timeout_s, &progress, states);
     const double seconds = elapsed();
     const std::vector<actors::SolverSnapshot> snapshots = states();
-    const TeamCounters bytes = sent();
+    const actors::PoseGraphTeamResult team = sent();
     std::vector<nlohmann::json> meshes;                  // the anchor's fuses the team's submaps
     for (size_t k = 0; k < nodes.size() && done; ++k) {  // after the deadline: no meshes
         meshes.push_back(WriteRobotMesh(*nodes[k], node_configs[k], config.robots[k], o.out_dir));
     }
     for (auto& node : nodes) node->RequestStop();  // all at once: their handlers end together
-    const std::string report = WriteTeamOutputs(o.out_dir, config.robots, snapshots, source, bytes,
+    const std::string report = WriteTeamOutputs(o.out_dir, config.robots, snapshots, source, team,
                                                 seconds, "report.json", meshes);
     if (o.json) {
         std::printf("%s\n", report.c_str());

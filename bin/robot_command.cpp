@@ -48,7 +48,7 @@ int RunPoseGraphRobot(zmq::context_t& context, const actors::TeamWiring& wiring,
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
         done = node.Done();
     }
-    actors::PoseGraphTeamResult result = actors::SummariseNodes({&node});
+    actors::PoseGraphTeamResult result = actors::SummariseNodes<actors::PoseGraphNode>({&node});
     result.done = done;
     result.cost_offset = cost_offset;
     result.seconds =

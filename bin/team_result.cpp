@@ -63,8 +63,10 @@ nlohmann::json TeamResultJson(const actors::PoseGraphTeamResult& r, int robots,
         if (r.done && report.has_bound()) {
             j["lower_bound"] = report.lower_bound() + r.cost_offset;
             j["suboptimality_bound"] = report.suboptimality_bound();
-            j["relative_suboptimality_bound"] =
-                cost > 0.0 ? report.suboptimality_bound() / cost : 0.0;
+            // The certifier's own (its noise floor for an optimum of 0) unless edges were merged.
+            j["relative_suboptimality_bound"] = r.cost_offset == 0.0
+                                                    ? report.relative_suboptimality_bound()
+                                                    : report.suboptimality_bound() / cost;
         }
     }
     if (!r.done) j["reason"] = "not certified before the timeout";

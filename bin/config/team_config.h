@@ -10,6 +10,7 @@
 
 #include "actors/durable_log.h"
 #include "actors/pose_graph_node.h"
+#include "actors/pose_graph_team.h"
 #include "actors/robot_node.h"
 #include "actors/wiring.h"
 #include "bin/config/team_config_sources.h"
@@ -64,32 +65,17 @@ TeamConfig LoadTeamConfig(const std::string& path);
 /// configured), or Unix sockets for robots with network.<robot>.ipc_dir.
 actors::TeamWiring NetworkWiring(const TeamConfig& config, int robot);
 
-/// What a team's robots sent each other (measured on the sockets, edges that reach another
-/// robot) and the anchor's certificate work: the keys `solve --distributed` reports.
-struct TeamCounters {
-    std::map<int, std::uint64_t> bytes_by_robot;
-    std::map<std::string, std::uint64_t> bytes_by_actor;
-    int certificate_rounds = 0;       ///< the anchor certifier's rounds
-    std::uint64_t lanczos_steps = 0;  ///< their eigen-solve's neighbour exchanges
-    /// Every robot's bytes together.
-    std::uint64_t Total() const;
-};
-
-/// The counters of `nodes` (robot ids `robots`, the same order); the certificate's from the
-/// node of the lowest id, the anchor.
-TeamCounters CountTeam(const std::vector<int>& robots,
-                       const std::vector<const actors::RobotNode*>& nodes);
-
 /// Writes each robot's trajectory (TUM) and the report (`report_name`; none when empty) into
 /// `dir` (nothing when empty); returns the JSON report. Per robot, where `source` has a reference:
 /// ATE RMSE after aligning the robot alone (`ate_rmse_own_alignment`), in the team frame without
 /// alignment
 /// (`ate_rmse_team_frame`), and the error of its recovered odometry frame (`offset_error_m`,
-/// `offset_error_deg`, worst over its keyframes).
+/// `offset_error_deg`, worst over its keyframes). From `team` (actors::SummariseNodes of the
+/// robots' nodes): the bytes between robots and the keys `solve --distributed` reports beside.
 std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& robots,
                              const std::vector<actors::SolverSnapshot>& snapshots,
-                             const TeamSource& source, const TeamCounters& counters, double seconds,
-                             const std::string& report_name,
+                             const TeamSource& source, const actors::PoseGraphTeamResult& team,
+                             double seconds, const std::string& report_name,
                              const std::vector<nlohmann::json>& meshes = {});
 
 /// Meshes the node's mapper (its own submaps and, where it fuses them, its peers') and writes

@@ -93,45 +93,18 @@ TeamConfig LoadTeamConfig(const std::string& path) {
     return config;
 }
 
-std::uint64_t TeamCounters::Total() const {
-    std::uint64_t total = 0;
-    for (const auto& [robot, bytes] : bytes_by_robot) total += bytes;
-    return total;
-}
-
-TeamCounters CountTeam(const std::vector<int>& robots,
-                       const std::vector<const actors::RobotNode*>& nodes) {
-    TeamCounters out;
-    std::size_t anchor = 0;
-    for (std::size_t k = 0; k < nodes.size(); ++k) {
-        out.bytes_by_robot[robots[k]] = nodes[k]->BytesSentToPeers();
-        for (const auto& [actor, bytes] : nodes[k]->BytesSentToPeersByActor()) {
-            out.bytes_by_actor[actor] += bytes;
-        }
-        if (robots[k] < robots[anchor]) anchor = k;
-    }
-    if (!nodes.empty()) {
-        out.certificate_rounds = nodes[anchor]->Certifier().Rounds();
-        out.lanczos_steps = nodes[anchor]->Certifier().LanczosSteps();
-    }
-    return out;
-}
-
 std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& robots,
                              const std::vector<actors::SolverSnapshot>& snapshots,
-                             const TeamSource& source, const TeamCounters& counters, double seconds,
-                             const std::string& report_name, const std::vector<json>& meshes) {
-    const std::uint64_t bytes_sent = counters.Total();
+                             const TeamSource& source, const actors::PoseGraphTeamResult& team,
+                             double seconds, const std::string& report_name,
+                             const std::vector<json>& meshes) {
+    const std::uint64_t bytes_sent = team.bytes_between_robots;
     json report;
     report["schema_version"] = kSchemaVersion;
     report["robots"] = json::array();
     int keyframes = 0, loops = 0;
-    std::uint64_t iterations = 0;  // team rounds: the most any robot swept
-    json iterations_by_robot = json::object();
     for (size_t k = 0; k < robots.size(); ++k) {
         const auto& s = snapshots[k];
-        iterations = std::max(iterations, s.team_rounds);
-        iterations_by_robot[std::to_string(robots[k])] = s.team_rounds;
         keyframes += s.num_poses;
         loops += s.inter_robot_loops;
         json robot{{"id", robots[k]},
@@ -173,15 +146,15 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
     report["inter_robot_loops"] = loops / 2;  // each loop is known to both of its robots
     report["bytes_sent"] = bytes_sent;
     // The keys of `solve --distributed`: team rounds, bytes by actor and robot, certificate work.
-    json by_robot = json::object();
-    for (const auto& [robot, bytes] : counters.bytes_by_robot)
-        by_robot[std::to_string(robot)] = bytes;
+    json by_robot = json::object(), steps = json::object();
+    for (const auto& [robot, bytes] : team.bytes_by_robot) by_robot[std::to_string(robot)] = bytes;
+    for (const auto& [robot, n] : team.iterations_by_robot) steps[std::to_string(robot)] = n;
     report["bytes_between_robots"] = {
-        {"total", bytes_sent}, {"by_actor", counters.bytes_by_actor}, {"by_robot", by_robot}};
-    report["iterations"] = iterations;
-    report["iterations_by_robot"] = iterations_by_robot;
-    report["certificate_rounds"] = counters.certificate_rounds;
-    report["lanczos_steps"] = counters.lanczos_steps;
+        {"total", bytes_sent}, {"by_actor", team.bytes_by_actor}, {"by_robot", by_robot}};
+    report["iterations"] = team.iterations;
+    report["iterations_by_robot"] = steps;
+    report["certificate_rounds"] = team.certificate_rounds;
+    report["lanczos_steps"] = team.lanczos_steps;
     report["bytes_per_keyframe"] = keyframes > 0 ? double(bytes_sent) / keyframes : 0.0;
     report["keyframes_per_second"] = seconds > 0 ? keyframes / seconds : 0.0;
     report["seconds"] = seconds;

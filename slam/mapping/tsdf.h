@@ -116,9 +116,10 @@ class TsdfVolume {
 
     /// The mesh of a volume with `config` into which every part was fused in order (FuseVoxels,
     /// then ExtractMesh), built in slabs of `slab_blocks` 8^3 blocks along x: the same mesh, with
-    /// one slab of the fused volume (and one decoded packed part) per piece in memory at a time.
-    /// The slabs are split into `pieces` runs of about equal fusion work, which `run` meshes
-    /// (the caller may give it threads; this library starts none), then welded in order.
+    /// one slab of the fused volume (and the packed parts that overlap it, decoded) per piece in
+    /// memory at a time. The slabs are split into at most `pieces` runs of about equal fusion work,
+    /// which `run` meshes (the caller may give it threads; this library starts none), then welded
+    /// in order. A packed part that spans two runs is decoded by each.
     static TriangleMesh FuseAndMesh(const std::vector<FusePart>& parts, const TsdfConfig& config,
                                     int slab_blocks = 8, int pieces = 1, const RunPieces& run = {});
 

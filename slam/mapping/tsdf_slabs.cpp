@@ -128,8 +128,8 @@ TriangleMesh TsdfVolume::FuseAndMesh(const std::vector<FusePart>& parts, const T
         x_max = std::max(x_max, fused.back().range.second);
     }
     // Slabs start on block edges, so each block is meshed whole in one slab, and in the order
-    // ExtractMesh welds them (origins sorted, x first). A slab's work: the voxels of the parts it
-    // overlaps, which FuseTsdfVoxels visits.
+    // ExtractMesh welds them (origins sorted, x first). A slab's work, estimated: the voxels of
+    // the parts it overlaps (FuseTsdfVoxels skips only their leaves that map outside it).
     const int width = slab_blocks * kDim;
     std::vector<int> x0s;
     std::vector<double> work;
@@ -141,6 +141,7 @@ TriangleMesh TsdfVolume::FuseAndMesh(const std::vector<FusePart>& parts, const T
             work.back() += fused[i].voxels;
         }
     }
+    pieces = std::max(1, std::min(pieces, static_cast<int>(x0s.size())));  // no empty runs
     const std::vector<std::size_t> bounds = SplitByWork(work, pieces);
     std::vector<TsdfBlockMesh> meshed(pieces);
     const auto piece = [&](int k) {

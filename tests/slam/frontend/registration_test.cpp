@@ -230,6 +230,8 @@ TEST(Registration, PreparedCloudsReusedGiveTheSameResult) {
     EXPECT_TRUE(lean.T_target_source.isApprox(full.T_target_source, 1e-12));
     EXPECT_DOUBLE_EQ(lean.fitness, full.fitness);
     EXPECT_DOUBLE_EQ(lean.inlier_rmse_m, full.inlier_rmse_m);
+    EXPECT_DOUBLE_EQ(lean.tau, full.tau);
+    EXPECT_TRUE(lean.information.isApprox(full.information, 1e-12));
     config.voxel_m = 0.3;
     EXPECT_FALSE(prepared_a.PreparedFor(config));
 }

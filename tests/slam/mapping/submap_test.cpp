@@ -225,7 +225,7 @@ TEST(TsdfMap, FusedMeshBySlabsEqualsTheMeshOfTheFusedVolume) {
         for (int k = 0; k < n; ++k) all.push_back(std::async(std::launch::async, piece, k));
         for (auto& f : all) f.get();
     };
-    for (const int pieces : {2, 3, 7, 1000}) {  // 1000: more pieces than slabs, most empty
+    for (const int pieces : {2, 3, 7, 1000}) {  // 1000: more pieces than slabs (capped)
         for (const auto* run : {&reverse, &threads}) {
             if (pieces == 1000 && run == &threads) continue;
             const TriangleMesh meshed =

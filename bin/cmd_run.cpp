@@ -69,6 +69,7 @@ int RunTeam(const TeamConfig& config, const RunOptions& o,
     };
     const auto sent = [&] {
         std::vector<const actors::RobotNode*> all;  // the anchor (the first robot) first
+        all.reserve(nodes.size());
         for (auto& node : nodes) all.push_back(node.get());
         return actors::SummariseNodes(all);
     };

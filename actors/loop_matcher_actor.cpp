@@ -128,9 +128,10 @@ bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
     if (!id || id->robot > RobotId() || id->robot != int(proto->header().robot_id())) return false;
     // Counted for the end marker even when its body is bad: a re-send would bring the same bytes.
     received_[id->robot].insert(id->index);
-    auto sc = FromProto(*proto);
+    const auto sc = FromProto(*proto);
     if (!sc) return false;
     if (id->index % config_.query_stride != 0 || descriptors_.count(*id)) return true;
+    slam::ScanContextColumns columns(*sc);
     std::vector<slam::LoopCandidate> candidates;
     for (const auto& [other, other_sc] : descriptors_) {
         // Own keyframe vs anything stored; a lower robot's keyframe vs own ones only.
@@ -142,14 +143,14 @@ bool LoopMatcherActor::OnDescriptor(const transport::Message& m) {
         }
         const slam::PoseId query = own_new ? *id : other;
         const slam::PoseId match = own_new ? other : *id;
-        const auto& q = own_new ? *sc : other_sc;
-        const auto& c = own_new ? other_sc : *sc;
+        const auto& q = own_new ? columns : other_sc;
+        const auto& c = own_new ? other_sc : columns;
         const auto best = slam::ScanContextDistance(q, c);
         if (best.distance < config_.max_sc_distance) {
             candidates.push_back({query, match, best.distance, best.yaw_rad});
         }
     }
-    descriptors_.emplace(*id, std::move(*sc));
+    descriptors_.emplace(*id, std::move(columns));
     // Best first, so a capped query keeps its most similar places (ties: the older keyframe).
     std::stable_sort(candidates.begin(), candidates.end(),
                      [](const auto& a, const auto& b) { return a.sc_distance < b.sc_distance; });

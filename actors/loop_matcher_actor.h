@@ -162,9 +162,9 @@ class LoopMatcherActor final : public NodeActor {
     std::map<slam::PoseId, std::shared_ptr<LazyPrepared>> prepared_;
     std::deque<slam::PoseId> prepared_order_;  ///< prepared_'s keys, least recently used first
     slam::CloudRequestGate gate_;
-    std::unique_ptr<boost::asio::thread_pool> workers_;      ///< while running
-    std::deque<Registration> registrations_;                 ///< queued, in candidate order
-    std::map<slam::PoseId, slam::ScanContext> descriptors_;  ///< own and lower robots'
+    std::unique_ptr<boost::asio::thread_pool> workers_;             ///< while running
+    std::deque<Registration> registrations_;                        ///< queued, in candidate order
+    std::map<slam::PoseId, slam::ScanContextColumns> descriptors_;  ///< own and lower robots'
     std::map<std::uint64_t, Pending> pending_;  ///< request id -> candidate that fetched
     std::vector<Pending> deferred_;          ///< own clouds not yet arrived (descriptor came first)
     std::map<int, std::set<int>> received_;  ///< robot -> keyframe indices described to us

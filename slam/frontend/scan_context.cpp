@@ -71,31 +71,15 @@ int SectorKeyShift(const ScanContext& query, const ScanContext& candidate) {
     return best;
 }
 
-// The descriptor's columns scaled to unit length (empty columns stay zero), column-major.
-struct UnitColumns {
-    explicit UnitColumns(const ScanContext& sc)
-        : columns(sc.bins), non_empty(static_cast<std::size_t>(sc.bins.cols()), false) {
-        for (Eigen::Index j = 0; j < columns.cols(); ++j) {
-            const float norm = columns.col(j).norm();
-            if (norm > 0.0f) {
-                columns.col(j) /= norm;
-                non_empty[static_cast<std::size_t>(j)] = true;
-            }
-        }
-    }
-    Eigen::MatrixXf columns;
-    std::vector<bool> non_empty;
-};
-
 // Eq. (5): mean cosine distance over the column pairs that are both non-empty.
-double DistanceAtShift(const UnitColumns& q, const UnitColumns& c, int shift) {
+double DistanceAtShift(const ScanContextColumns& q, const ScanContextColumns& c, int shift) {
     const int n = static_cast<int>(q.columns.cols());
     double sum = 0.0;
     int pairs = 0;
     for (int j = 0; j < n; ++j) {
         const int k = Wrap(j + shift, n);
-        if (!q.non_empty[static_cast<std::size_t>(j)] ||
-            !c.non_empty[static_cast<std::size_t>(k)]) {
+        if (q.non_empty[static_cast<std::size_t>(j)] == 0 ||
+            c.non_empty[static_cast<std::size_t>(k)] == 0) {
             continue;
         }
         sum += 1.0 - static_cast<double>(q.columns.col(j).dot(c.columns.col(k)));
@@ -147,13 +131,29 @@ ScanContext MakeScanContext(const PointCloud& cloud, const ScanContextConfig& co
 double ScanContextDistanceAtShift(const ScanContext& query, const ScanContext& candidate,
                                   int shift) {
     CheckCompatible(query, candidate);
-    return DistanceAtShift(UnitColumns(query), UnitColumns(candidate), shift);
+    return DistanceAtShift(ScanContextColumns(query), ScanContextColumns(candidate), shift);
+}
+
+ScanContextColumns::ScanContextColumns(const ScanContext& sc)
+    : columns(sc.bins), non_empty(static_cast<std::size_t>(sc.bins.cols()), 0) {
+    for (Eigen::Index j = 0; j < columns.cols(); ++j) {
+        const float norm = columns.col(j).norm();
+        if (norm > 0.0f) {
+            columns.col(j) /= norm;
+            non_empty[static_cast<std::size_t>(j)] = 1;
+        }
+    }
 }
 
 ScanContextMatch ScanContextDistance(const ScanContext& query, const ScanContext& candidate) {
     CheckCompatible(query, candidate);
-    const UnitColumns q(query), c(candidate);
-    const int n = static_cast<int>(query.bins.cols());
+    return ScanContextDistance(ScanContextColumns(query), ScanContextColumns(candidate));
+}
+
+ScanContextMatch ScanContextDistance(const ScanContextColumns& q, const ScanContextColumns& c) {
+    CERTISLAM_CHECK(q.columns.rows() == c.columns.rows() && q.columns.cols() == c.columns.cols());
+    CERTISLAM_CHECK(q.columns.cols() >= 1);
+    const int n = static_cast<int>(q.columns.cols());
     // All column cosines at once: cosines(j, k) = q_j . c_k for unit columns.
     const Eigen::MatrixXf cosines = q.columns.transpose() * c.columns;
     ScanContextMatch best;
@@ -161,9 +161,11 @@ ScanContextMatch ScanContextDistance(const ScanContext& query, const ScanContext
     for (int s = 0; s < n; ++s) {  // Eq. (6): minimum over all column shifts
         double sum = 0.0;
         int pairs = 0;
-        for (int j = 0; j < n; ++j) {
-            const int k = (j + s) % n;
-            if (!q.non_empty[j] || !c.non_empty[k]) continue;
+        for (int j = 0, k = s; j < n; ++j, k = k + 1 == n ? 0 : k + 1) {  // k = (j + s) mod n
+            if (q.non_empty[static_cast<std::size_t>(j)] == 0 ||
+                c.non_empty[static_cast<std::size_t>(k)] == 0) {
+                continue;
+            }
             sum += 1.0 - cosines(j, k);
             ++pairs;
         }
@@ -178,7 +180,7 @@ ScanContextMatch ScanContextDistanceFast(const ScanContext& query, const ScanCon
                                          int search_radius) {
     CheckCompatible(query, candidate);
     CERTISLAM_CHECK(search_radius >= 0);
-    const UnitColumns q(query), c(candidate);
+    const ScanContextColumns q(query), c(candidate);
     const int n = static_cast<int>(query.bins.cols());
     const int coarse = SectorKeyShift(query, candidate);
     ScanContextMatch best;

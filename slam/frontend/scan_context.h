@@ -54,6 +54,18 @@ double ScanContextDistanceAtShift(const ScanContext& query, const ScanContext& c
 /// Exhaustive search over all N_s column shifts (paper Eq. (6)).
 ScanContextMatch ScanContextDistance(const ScanContext& query, const ScanContext& candidate);
 
+/// A descriptor's columns scaled to unit length (empty columns stay zero), as Eq. (5) compares
+/// them: made once per stored descriptor, it serves every exhaustive search against it.
+struct ScanContextColumns {
+    explicit ScanContextColumns(const ScanContext& sc);
+    Eigen::MatrixXf columns;              ///< N_r x N_s, column-major
+    std::vector<std::uint8_t> non_empty;  ///< 1 where the column is not all zero
+};
+
+/// ScanContextDistance on columns made beforehand: the same result, bit for bit.
+ScanContextMatch ScanContextDistance(const ScanContextColumns& query,
+                                     const ScanContextColumns& candidate);
+
 /// Fast search: coarse shift from the sector keys, then +-search_radius shifts around it.
 ScanContextMatch ScanContextDistanceFast(const ScanContext& query, const ScanContext& candidate,
                                          int search_radius);

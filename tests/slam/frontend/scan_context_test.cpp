@@ -91,6 +91,27 @@ TEST_F(ScanContextKitti, DistanceIsSymmetricInItsMinimum) {
     EXPECT_EQ((ab.shift + ba.shift) % 60, 0);
 }
 
+// Columns made once per descriptor (as the loop matcher keeps them): the exhaustive search is
+// the minimum of Eq. (5) over every shift, each shift's distance computed on its own.
+TEST_F(ScanContextKitti, ColumnsMadeOnceGiveTheMinimumOverEveryShift) {
+    for (const auto& [a, b] : {std::pair{94, 95}, {95, 94}, {94, 198}, {199, 95}}) {
+        const ScanContextColumns qa(sc_[a]), cb(sc_[b]);
+        const ScanContextMatch match = ScanContextDistance(qa, cb);
+        double best = 2.0;
+        int best_shift = -1;
+        for (int s = 0; s < 60; ++s) {
+            const double d = ScanContextDistanceAtShift(sc_[a], sc_[b], s);
+            if (d < best - 1e-9) {
+                best = d;
+                best_shift = s;
+            }
+        }
+        EXPECT_NEAR(match.distance, best, 1e-6) << a << " -> " << b;
+        EXPECT_EQ(match.shift, best_shift) << a << " -> " << b;
+        EXPECT_EQ(ScanContextDistance(sc_[a], sc_[b]).distance, match.distance);
+    }
+}
+
 // A scan rotated by k x 6 degrees: the recovered yaw is within one sector of the truth,
 // for both searches, for k across the whole circle.
 TEST(ScanContextRotation, RecoversYawWithinOneSector) {

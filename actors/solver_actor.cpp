@@ -388,10 +388,20 @@ void SolverActor::UpdateSnapshot() {
     s.rank = state_.Rank();
     s.staircase_level = state_.StaircaseLevel();
     s.inter_robot_loops = static_cast<int>(state_.InterRobotLoops().size());
-    const auto poses =
-        state_.Trajectory(certify::ComponentAnchor(RobotId(), team_loops_), &s.anchor);
-    for (size_t i = 0; i < poses.size(); ++i) {
-        s.trajectory.push_back({static_cast<double>(stamps_ns_[i]) * 1e-9, poses[i]});
+    // While the block iterates asynchronously its rounded trajectory (an SVD per pose, as costly
+    // as a step) is taken at most every kTrajectoryPeriod; at rest and in rounds, every time.
+    const auto now = std::chrono::steady_clock::now();
+    if (!work_ || InRounds() || snapshot_.trajectory.size() != stamps_ns_.size() ||
+        now - trajectory_at_ >= kTrajectoryPeriod) {
+        trajectory_at_ = now;
+        const auto poses =
+            state_.Trajectory(certify::ComponentAnchor(RobotId(), team_loops_), &s.anchor);
+        for (size_t i = 0; i < poses.size(); ++i) {
+            s.trajectory.push_back({static_cast<double>(stamps_ns_[i]) * 1e-9, poses[i]});
+        }
+    } else {
+        s.anchor = snapshot_.anchor;  // only this thread writes snapshot_
+        s.trajectory = snapshot_.trajectory;
     }
     s.report = report_;
     s.changed = changed_;

@@ -228,6 +228,9 @@ class SolverActor final : public NodeActor {
     mutable std::mutex snapshot_mutex_;
     SolverSnapshot snapshot_;
     SnapshotKey snapshot_key_{};  ///< KeyOfSnapshot() when snapshot_ was taken
+    /// See UpdateSnapshot: how stale an iterating block's snapshot trajectory may be.
+    static constexpr std::chrono::milliseconds kTrajectoryPeriod{25};
+    std::chrono::steady_clock::time_point trajectory_at_{};  ///< when it was last rounded
 };
 
 }  // namespace certislam::actors

@@ -1,14 +1,11 @@
 // Scan-to-scan registration: the settings check, the yaw guess, clouds prepared once (trees,
-// normals, GICP covariances) and RegisterScans with PCL's GICP
-// (the project's only PCL registration translation unit: no PCL header leaves this file).
+// normals, GICP covariances) and RegisterScans by GICP (Segal et al. 2009) solved by damped
+// Gauss-Newton.
 #include "slam/frontend/registration.h"
 
-#include <pcl/point_cloud.h>
-#include <pcl/point_types.h>
-#include <pcl/registration/gicp.h>
-#include <pcl/search/kdtree.h>
-
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <memory>
@@ -28,74 +25,10 @@ namespace {
                                 ": must be " + rule);
 }
 
-using PclCloud = pcl::PointCloud<pcl::PointXYZ>;
-
-PclCloud::Ptr ToPcl(const PointCloud& cloud) {
-    auto out = std::make_shared<PclCloud>();
-    out->resize(cloud.size());
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-        (*out)[i].getVector3fMap() = cloud[i];
-    }
-    return out;
-}
-
-// PCL's search interface answered by the project's nanoflann tree. GICP asks one point at a time;
-// FLANN's knnSearch opens an OpenMP parallel region per call, whose thread wake-ups (futex) cost
-// more than the query itself.
-class NanoflannSearch : public pcl::search::KdTree<pcl::PointXYZ> {
-  public:
-    void setInputCloud(const PointCloudConstPtr& cloud,
-                       const pcl::IndicesConstPtr& indices = pcl::IndicesConstPtr()) override {
-        if (indices && !indices->empty()) {
-            throw std::invalid_argument("NanoflannSearch: index subsets are not supported");
-        }
-        input_ = cloud;
-        indices_ = indices;
-        points_.resize(cloud->size());
-        for (std::size_t i = 0; i < cloud->size(); ++i) points_[i] = (*cloud)[i].getVector3fMap();
-        nano_ = std::make_unique<PointKdTree>(points_);
-    }
-
-    /// The tree over the cloud last given to setInputCloud.
-    const PointKdTree& Tree() const { return *nano_; }
-
-    int nearestKSearch(const pcl::PointXYZ& point, int k, pcl::Indices& k_indices,
-                       std::vector<float>& k_sqr_distances) const override {
-        thread_local std::vector<std::size_t> found;  // GICP asks once per point and iteration
-        nano_->Knn(point.getVector3fMap(), static_cast<std::size_t>(std::max(k, 0)), found,
-                   k_sqr_distances);
-        k_indices.assign(found.begin(), found.end());
-        return static_cast<int>(found.size());
-    }
-
-    int radiusSearch(const pcl::PointXYZ& point, double radius, pcl::Indices& k_indices,
-                     std::vector<float>& k_sqr_distances, unsigned int max_nn) const override {
-        std::vector<std::pair<std::size_t, float>> found;
-        nano_->Within(point.getVector3fMap(), static_cast<float>(radius * radius), found);
-        if (max_nn > 0 && found.size() > max_nn) found.resize(max_nn);
-        k_indices.resize(found.size());
-        k_sqr_distances.resize(found.size());
-        for (std::size_t i = 0; i < found.size(); ++i) {
-            k_indices[i] = static_cast<pcl::index_t>(found[i].first);
-            k_sqr_distances[i] = found[i].second;
-        }
-        return static_cast<int>(found.size());
-    }
-
-  private:
-    slam::PointCloud points_;  // the tree refers to these by address
-    std::unique_ptr<PointKdTree> nano_;
-};
-
-using Gicp = pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>;
-
-// GICP's plane-to-plane covariance (Segal et al. 2009, Sec. III-B) of the points `indices`, with
-// PCL's computeCovariances arithmetic (raw moments of float products, so registrations stay
-// those of PCL's GICP) and the smallest-|eigenvalue| direction set to PCL's gicp_epsilon_
-// default, the others to 1: an eigen-decomposition in place of PCL's SVD (the same matrix but in
-// near-degenerate neighbourhoods, where either direction is arbitrary).
-Eigen::Matrix3d PclPlaneCovariance(const PointCloud& cloud,
-                                   const std::vector<std::size_t>& indices) {
+// GICP's plane-to-plane covariance (Segal et al. 2009, Sec. III-B) of the points `indices`: raw
+// moments of float products, the smallest-|eigenvalue| direction set to epsilon = 1e-3 and the
+// others to 1 (PCL's computeCovariances arithmetic and gicp_epsilon_ default).
+Eigen::Matrix3d PlaneCovariance(const PointCloud& cloud, const std::vector<std::size_t>& indices) {
     constexpr double kGicpEpsilon = 1e-3;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
@@ -127,11 +60,10 @@ struct StageResult {
 }  // namespace
 
 struct PreparedCloud::Stage {
-    PointCloud points;                      ///< downsampled at the stage's voxel
-    PclCloud::Ptr pcl;                      ///< the same points for PCL
-    std::shared_ptr<NanoflannSearch> tree;  ///< over pcl (null below min_points)
-    std::vector<Eigen::Vector3d> normals;   ///< PlaneNormal of each k-NN (fine stage only)
-    Gicp::MatricesVectorPtr covariances;    ///< GICP's, per point (null below min_points)
+    PointCloud points;                         ///< downsampled at the stage's voxel
+    std::unique_ptr<PointKdTree> tree;         ///< over points (null below min_points)
+    std::vector<Eigen::Vector3d> normals;      ///< PlaneNormal of each k-NN (fine stage only)
+    std::vector<Eigen::Matrix3d> covariances;  ///< GICP's, per point (empty below min_points)
 };
 
 namespace {
@@ -143,43 +75,116 @@ std::unique_ptr<PreparedCloud::Stage> MakeStage(const PointCloud& cloud, double 
     auto stage = std::make_unique<PreparedCloud::Stage>();
     stage->points = VoxelDownsample(cloud, voxel_m);
     if (static_cast<int>(stage->points.size()) < config.min_points) return stage;
-    stage->pcl = ToPcl(stage->points);
-    stage->tree = std::make_shared<NanoflannSearch>();
-    stage->tree->setInputCloud(stage->pcl);
+    stage->tree = std::make_unique<PointKdTree>(stage->points);
     // One k-NN pass for GICP's covariances and the quality test's planes.
-    stage->covariances = std::make_shared<Gicp::MatricesVector>();
-    stage->covariances->reserve(stage->points.size());
+    stage->covariances.reserve(stage->points.size());
     if (normals) stage->normals.reserve(stage->points.size());
     std::vector<std::size_t> indices;
     std::vector<float> squared;
     for (const Eigen::Vector3f& p : stage->points) {
-        stage->tree->Tree().Knn(p, static_cast<std::size_t>(config.covariance_neighbours), indices,
-                                squared);
-        stage->covariances->push_back(PclPlaneCovariance(stage->points, indices));
+        stage->tree->Knn(p, static_cast<std::size_t>(config.covariance_neighbours), indices,
+                         squared);
+        stage->covariances.push_back(PlaneCovariance(stage->points, indices));
         if (normals) stage->normals.push_back(PlaneNormal(stage->points, indices));
     }
     return stage;
 }
 
-// One GICP run (Segal et al. 2009) from `guess` on prepared stages (trees and covariances kept).
+/// A source point matched to its nearest target point, and the weight of their difference.
+struct GicpPair {
+    std::size_t source, target;
+    Eigen::Matrix3d weight;  ///< (C_target + R C_source R^T)^-1 at the iterate that matched them
+};
+
+/// sum_i d_i^T W_i d_i with d_i = target_i - (R source_i + t): Segal et al.'s Eq. (2) cost.
+double GicpCost(const PreparedCloud::Stage& source, const PreparedCloud::Stage& target,
+                const std::vector<GicpPair>& pairs, const Eigen::Matrix3d& R,
+                const Eigen::Vector3d& t) {
+    double cost = 0.0;
+    for (const GicpPair& p : pairs) {
+        const Eigen::Vector3d d = target.points[p.target].cast<double>() -
+                                  (R * source.points[p.source].cast<double>() + t);
+        cost += d.dot(p.weight * d);
+    }
+    return cost;
+}
+
+// One GICP run from `guess` on prepared stages: each iteration matches every source point to its
+// nearest target point within the gate, weighs the pair by (C_t + R C_s R^T)^-1 (Segal et al.
+// 2009, Eq. (2)) and takes a Levenberg-Marquardt-damped Gauss-Newton step on the left
+// perturbation T <- exp(xi) T; it stops when a step moves the translation less than
+// converged_translation_m and the rotation less than converged_rotation (radians). A closed-form
+// 6x6 Hessian per iteration in place of PCL's BFGS with line searches, which evaluates the cost
+// over every pair many times per correspondence set.
 StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Stage& target,
                     const Eigen::Matrix4f& guess, double max_correspondence_m,
                     const RegistrationConfig& config) {
-    Gicp gicp;
-    gicp.setSearchMethodSource(source.tree, /*force_no_recompute=*/true);
-    gicp.setSearchMethodTarget(target.tree, /*force_no_recompute=*/true);
-    gicp.setInputSource(source.pcl);  // resets the covariances: set them after
-    gicp.setSourceCovariances(source.covariances);
-    gicp.setInputTarget(target.pcl);
-    gicp.setTargetCovariances(target.covariances);
-    gicp.setMaxCorrespondenceDistance(max_correspondence_m);
-    gicp.setMaximumIterations(config.max_iterations);
-    gicp.setCorrespondenceRandomness(config.covariance_neighbours);
-    gicp.setTransformationEpsilon(config.converged_translation_m);
-    gicp.setRotationEpsilon(config.converged_rotation);
-    PclCloud aligned;
-    gicp.align(aligned, guess);
-    return {gicp.getFinalTransformation(), gicp.hasConverged()};
+    constexpr int kMinPairs = 6;
+    constexpr int kMaxDampingTries = 10;
+    const Eigen::Matrix4d T0 = guess.cast<double>();
+    Eigen::Matrix3d R = T0.topLeftCorner<3, 3>();
+    Eigen::Vector3d t = T0.topRightCorner<3, 1>();
+    const auto result = [&](bool converged) {
+        Eigen::Matrix4f T = Eigen::Matrix4f::Identity();
+        T.topLeftCorner<3, 3>() = R.cast<float>();
+        T.topRightCorner<3, 1>() = t.cast<float>();
+        return StageResult{T, converged};
+    };
+    const auto gate = static_cast<float>(max_correspondence_m * max_correspondence_m);
+    std::vector<GicpPair> pairs;
+    pairs.reserve(source.points.size());
+    double lambda = 1e-6;
+    for (int iteration = 0; iteration < config.max_iterations; ++iteration) {
+        pairs.clear();
+        Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+        Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+        double cost = 0.0;
+        for (std::size_t i = 0; i < source.points.size(); ++i) {
+            const Eigen::Vector3d q = R * source.points[i].cast<double>() + t;
+            std::size_t j = 0;
+            float squared = 0.0f;
+            if (!target.tree->Nearest(q.cast<float>(), j, squared) || squared > gate) continue;
+            const Eigen::Matrix3d W =
+                (target.covariances[j] + R * source.covariances[i] * R.transpose()).inverse();
+            pairs.push_back({i, j, W});
+            const Eigen::Vector3d d = target.points[j].cast<double>() - q;
+            // d(d)/d(xi) = [q]x for the rotation part, -I for the translation part.
+            Eigen::Matrix<double, 3, 6> J;
+            J << 0.0, -q.z(), q.y(), -1.0, 0.0, 0.0,  //
+                q.z(), 0.0, -q.x(), 0.0, -1.0, 0.0,   //
+                -q.y(), q.x(), 0.0, 0.0, 0.0, -1.0;
+            const Eigen::Matrix<double, 6, 3> JtW = J.transpose() * W;
+            H.noalias() += JtW * J;
+            g.noalias() += JtW * d;
+            cost += d.dot(W * d);
+        }
+        if (static_cast<int>(pairs.size()) < kMinPairs) return result(false);
+        bool moved = false;
+        for (int attempt = 0; attempt < kMaxDampingTries && !moved; ++attempt) {
+            Eigen::Matrix<double, 6, 6> damped = H;
+            damped.diagonal() += lambda * H.diagonal().cwiseMax(1e-12);
+            const Eigen::Matrix<double, 6, 1> xi = -damped.ldlt().solve(g);
+            const Eigen::AngleAxisd turn(xi.head<3>().norm(), xi.head<3>().normalized());
+            const Eigen::Matrix3d dR =
+                xi.head<3>().norm() > 0.0 ? turn.toRotationMatrix() : Eigen::Matrix3d::Identity();
+            const Eigen::Matrix3d R_next = dR * R;
+            const Eigen::Vector3d t_next = dR * t + xi.tail<3>();
+            if (!(GicpCost(source, target, pairs, R_next, t_next) <= cost)) {
+                lambda *= 10.0;
+                continue;
+            }
+            moved = true;
+            lambda = std::max(lambda / 10.0, 1e-12);
+            R = R_next;
+            t = t_next;
+            if (xi.tail<3>().norm() < config.converged_translation_m &&
+                xi.head<3>().norm() < config.converged_rotation) {
+                return result(true);
+            }
+        }
+        if (!moved) return result(true);  // no damped step lowers the cost: a minimum
+    }
+    return result(false);
 }
 
 Eigen::Isometry3d ToIsometry(const Eigen::Matrix4f& m) {
@@ -276,16 +281,17 @@ RegistrationResult RegisterScans(const PreparedCloud& source, const PreparedClou
     }
     Eigen::Matrix4f T = T_target_source_guess.matrix().cast<float>();
     if (source.Coarse() && target.Coarse()) {  // coarse stage: wide gate absorbs SC's metres
-        const StageResult coarse = RunGicp(*source.Coarse(), *target.Coarse(), T,
-                                           config.coarse_max_correspondence_m, config);
-        if (coarse.converged) T = coarse.T_target_source;
+        // Kept even when not converged: the damped steps only ever lowered the cost.
+        T = RunGicp(*source.Coarse(), *target.Coarse(), T, config.coarse_max_correspondence_m,
+                    config)
+                .T_target_source;
     }
     const StageResult fine =
         RunGicp(source.Fine(), target.Fine(), T, config.max_correspondence_m, config);
     result.converged = fine.converged;
     result.T_target_source = ToIsometry(fine.T_target_source);
     const RegistrationResult::Status quality =
-        EvaluateAlignment(source.Fine().points, target.Fine().points, target.Fine().tree->Tree(),
+        EvaluateAlignment(source.Fine().points, target.Fine().points, *target.Fine().tree,
                           target.Fine().normals, config, result);
     result.status = result.converged ? quality : RegistrationResult::Status::kNotConverged;
     return result;

@@ -81,7 +81,7 @@ class PreparedCloud {
     PreparedCloud(const PreparedCloud&) = delete;
     PreparedCloud& operator=(const PreparedCloud&) = delete;
 
-    struct Stage;  ///< one stage's cloud, tree and covariances (PCL types: registration.cpp)
+    struct Stage;  ///< one stage's cloud, tree and covariances (registration.cpp)
     /// The fine stage's data.
     const Stage& Fine() const { return *fine_; }
     /// The coarse stage's data; null without a coarse stage or with fewer than min_points.

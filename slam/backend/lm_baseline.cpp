@@ -9,30 +9,10 @@
 #include <vector>
 
 #include "slam/backend/connection_laplacian.h"
+#include "slam/backend/lm_se3_edge_cost.h"
 
 namespace certislam::slam {
 namespace {
-
-/// Residual of one 3D edge: sqrt(w kappa) vec(R_j - R_i R~) and sqrt(w tau)(t_j - t_i - R_i t~).
-struct Se3EdgeResidual {
-    Eigen::Matrix3d R;
-    Eigen::Vector3d t;
-    double sqrt_kappa, sqrt_tau;
-    template <typename T>
-    bool operator()(const T* qi, const T* ti, const T* qj, const T* tj, T* out) const {
-        const Eigen::Matrix<T, 3, 3> Ri =
-            Eigen::Map<const Eigen::Quaternion<T>>(qi).toRotationMatrix();
-        const Eigen::Matrix<T, 3, 3> Rj =
-            Eigen::Map<const Eigen::Quaternion<T>>(qj).toRotationMatrix();
-        const Eigen::Matrix<T, 3, 3> E = Rj - Ri * R.cast<T>();
-        const Eigen::Matrix<T, 3, 1> e = Eigen::Map<const Eigen::Matrix<T, 3, 1>>(tj) -
-                                         Eigen::Map<const Eigen::Matrix<T, 3, 1>>(ti) -
-                                         Ri * t.cast<T>();
-        for (int k = 0; k < 9; ++k) out[k] = T(sqrt_kappa) * E(k % 3, k / 3);
-        for (int k = 0; k < 3; ++k) out[9 + k] = T(sqrt_tau) * e[k];
-        return true;
-    }
-};
 
 /// Residual of one 2D edge with rotations as angles.
 struct Se2EdgeResidual {
@@ -107,8 +87,7 @@ void AddEdges(const PoseGraph& graph, Parameters* p, ceres::Problem* problem) {
         if (sk == 0.0 && st == 0.0) continue;
         ceres::CostFunction* cost = nullptr;
         if (graph.d == 3) {
-            cost = new ceres::AutoDiffCostFunction<Se3EdgeResidual, 12, 4, 3, 4, 3>(
-                new Se3EdgeResidual{e.R, e.t, sk, st});
+            cost = new Se3EdgeCost(e.R, e.t, sk, st);
         } else {
             cost = new ceres::AutoDiffCostFunction<Se2EdgeResidual, 6, 1, 2, 1, 2>(
                 new Se2EdgeResidual{e.R, e.t, sk, st});
@@ -166,6 +145,66 @@ LmResult SolveLm(const PoseGraph& graph, const PoseMatrix& initial, const LmConf
         result.status = LmResult::Status::kNoConvergence;
     }
     return result;
+}
+
+namespace {
+
+/// R(q) of a unit quaternion (x, y, z, w) as Eigen's toRotationMatrix forms it, and its four
+/// partial derivatives dR/dx, dR/dy, dR/dz, dR/dw.
+void RotationAndDerivatives(const double* q, Eigen::Matrix3d* R, Eigen::Matrix3d* dR) {
+    const double x = q[0], y = q[1], z = q[2], w = q[3];
+    *R << 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),  //
+        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),    //
+        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y);
+    if (dR == nullptr) return;
+    dR[0] << 0, 2 * y, 2 * z, 2 * y, -4 * x, -2 * w, 2 * z, 2 * w, -4 * x;
+    dR[1] << -4 * y, 2 * x, 2 * w, 2 * x, 0, 2 * z, -2 * w, 2 * z, -4 * y;
+    dR[2] << -4 * z, -2 * w, 2 * x, 2 * w, -4 * z, 2 * y, 2 * x, 2 * y, 0;
+    dR[3] << 0, -2 * z, 2 * y, 2 * z, 0, -2 * x, -2 * y, 2 * x, 0;
+}
+
+}  // namespace
+
+bool Se3EdgeCost::Evaluate(double const* const* parameters, double* residuals,
+                           double** jacobians) const {
+    const bool want = jacobians != nullptr;
+    Eigen::Matrix3d Ri, Rj, dRi[4], dRj[4];
+    RotationAndDerivatives(parameters[0], &Ri, want && jacobians[0] ? dRi : nullptr);
+    RotationAndDerivatives(parameters[2], &Rj, want && jacobians[2] ? dRj : nullptr);
+    const Eigen::Map<const Eigen::Vector3d> ti(parameters[1]), tj(parameters[3]);
+    const Eigen::Matrix3d E = Rj - Ri * R_;
+    const Eigen::Vector3d e = tj - ti - Ri * t_;
+    for (int k = 0; k < 9; ++k) residuals[k] = sqrt_kappa_ * E(k % 3, k / 3);
+    for (int k = 0; k < 3; ++k) residuals[9 + k] = sqrt_tau_ * e[k];
+    if (!want) return true;
+    // Row-major 12 x size blocks; the residual's rows 0-8 are vec(E) (column-major), 9-11 e.
+    using Rows = Eigen::Matrix<double, 12, Eigen::Dynamic, Eigen::RowMajor>;
+    if (jacobians[0]) {
+        Eigen::Map<Eigen::Matrix<double, 12, 4, Eigen::RowMajor>> J(jacobians[0]);
+        for (int c = 0; c < 4; ++c) {
+            const Eigen::Matrix3d dE = -dRi[c] * R_;
+            for (int k = 0; k < 9; ++k) J(k, c) = sqrt_kappa_ * dE(k % 3, k / 3);
+            J.block<3, 1>(9, c) = -sqrt_tau_ * (dRi[c] * t_);
+        }
+    }
+    if (jacobians[1]) {
+        Eigen::Map<Rows> J(jacobians[1], 12, 3);
+        J.setZero();
+        J.bottomRows<3>() = -sqrt_tau_ * Eigen::Matrix3d::Identity();
+    }
+    if (jacobians[2]) {
+        Eigen::Map<Eigen::Matrix<double, 12, 4, Eigen::RowMajor>> J(jacobians[2]);
+        J.bottomRows<3>().setZero();
+        for (int c = 0; c < 4; ++c) {
+            for (int k = 0; k < 9; ++k) J(k, c) = sqrt_kappa_ * dRj[c](k % 3, k / 3);
+        }
+    }
+    if (jacobians[3]) {
+        Eigen::Map<Rows> J(jacobians[3], 12, 3);
+        J.setZero();
+        J.bottomRows<3>() = sqrt_tau_ * Eigen::Matrix3d::Identity();
+    }
+    return true;
 }
 
 }  // namespace certislam::slam

@@ -141,7 +141,8 @@ TriangleMesh TsdfVolume::FuseAndMesh(const std::vector<FusePart>& parts, const T
             work.back() += fused[i].voxels;
         }
     }
-    pieces = std::max(1, std::min(pieces, static_cast<int>(x0s.size())));  // no empty runs
+    pieces =
+        std::max(1, std::min(pieces, static_cast<int>(x0s.size())));  // no more runs than slabs
     const std::vector<std::size_t> bounds = SplitByWork(work, pieces);
     std::vector<TsdfBlockMesh> meshed(pieces);
     const auto piece = [&](int k) {

@@ -104,6 +104,7 @@ void SolverActor::Subscribe() {
         const auto report = transport::Unpack<v1::CertificateReport>(m);
         if (!report) return false;
         report_ = *report;
+        ++report_heard_;
         // S + eta D was PSD, but the bound was too loose for a verdict: the bound is first order
         // in the gradient, so the asynchronous steps go on to the rounds' refined tolerance, and
         // the moved blocks open a new check (the synchronous rounds refine by themselves).
@@ -389,11 +390,14 @@ void SolverActor::UpdateSnapshot() {
     s.staircase_level = state_.StaircaseLevel();
     s.inter_robot_loops = static_cast<int>(state_.InterRobotLoops().size());
     // While the block iterates asynchronously its rounded trajectory (an SVD per pose, as costly
-    // as a step) is taken at most every kTrajectoryPeriod; at rest and in rounds, every time.
+    // as a step) is taken at most every kTrajectoryPeriod; at rest, converged, in rounds or with
+    // a new certificate report, every time.
     const auto now = std::chrono::steady_clock::now();
-    if (!work_ || InRounds() || snapshot_.trajectory.size() != stamps_ns_.size() ||
+    if (!work_ || local_ok_ || InRounds() || report_.has_value() != snapshot_.report.has_value() ||
+        report_heard_ != snapshot_reports_ || snapshot_.trajectory.size() != stamps_ns_.size() ||
         now - trajectory_at_ >= kTrajectoryPeriod) {
         trajectory_at_ = now;
+        snapshot_reports_ = report_heard_;
         const auto poses =
             state_.Trajectory(certify::ComponentAnchor(RobotId(), team_loops_), &s.anchor);
         for (size_t i = 0; i < poses.size(); ++i) {

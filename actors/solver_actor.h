@@ -231,6 +231,8 @@ class SolverActor final : public NodeActor {
     /// See UpdateSnapshot: how stale an iterating block's snapshot trajectory may be.
     static constexpr std::chrono::milliseconds kTrajectoryPeriod{25};
     std::chrono::steady_clock::time_point trajectory_at_{};  ///< when it was last rounded
+    std::uint64_t report_heard_ = 0;                         ///< certificate reports heard
+    std::uint64_t snapshot_reports_ = 0;  ///< report_heard_ when the trajectory was rounded
 };
 
 }  // namespace certislam::actors

@@ -7,7 +7,7 @@ include(CMakePackageConfigHelpers)
 
 set(CERTISLAM_EXPORTED
   slam_core slam_io_base slam_io slam_sim slam_frontend slam_backend slam_mapping slam_eval slam
-  certify certify_distributed pipeline_rounds pipeline pcl pcl_io zstd cholmod)
+  certify certify_distributed pipeline_rounds pipeline pcl_io zstd cholmod)
 set(exported_targets)
 foreach(name ${CERTISLAM_EXPORTED})
   set(target certislam_${name})

@@ -112,8 +112,9 @@ double GicpCost(const PreparedCloud::Stage& source, const PreparedCloud::Stage& 
 // One GICP run from `guess` on prepared stages: each iteration matches every source point to its
 // nearest target point within the gate, weighs the pair by (C_t + R C_s R^T)^-1 (Segal et al.
 // 2009, Eq. (2)) and takes a Levenberg-Marquardt-damped Gauss-Newton step on the left
-// perturbation T <- exp(xi) T; it stops when a step moves the translation less than
-// converged_translation_m and the rotation less than converged_rotation (radians). A closed-form
+// perturbation (R, t) <- (exp(omega) R, exp(omega) t + v); it stops when a step taken with
+// little damping moves t by less than converged_translation_m and turns R by less than
+// converged_rotation (radians). Fewer than 6 pairs: the guess back, not converged. A closed-form
 // 6x6 Hessian per iteration in place of PCL's BFGS with line searches, which evaluates the cost
 // over every pair many times per correspondence set.
 StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Stage& target,
@@ -121,6 +122,7 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
                     const RegistrationConfig& config) {
     constexpr int kMinPairs = 6;
     constexpr int kMaxDampingTries = 10;
+    constexpr double kStopDamping = 1e-2;  // damping of at most 1 % of the Hessian's diagonal
     const Eigen::Matrix4d T0 = guess.cast<double>();
     Eigen::Matrix3d R = T0.topLeftCorner<3, 3>();
     Eigen::Vector3d t = T0.topRightCorner<3, 1>();
@@ -158,7 +160,11 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
             g.noalias() += JtW * d;
             cost += d.dot(W * d);
         }
-        if (static_cast<int>(pairs.size()) < kMinPairs) return result(false);
+        if (static_cast<int>(pairs.size()) < kMinPairs) {  // lost the overlap: nothing to trust
+            R = T0.topLeftCorner<3, 3>();
+            t = T0.topRightCorner<3, 1>();
+            return result(false);
+        }
         bool moved = false;
         for (int attempt = 0; attempt < kMaxDampingTries && !moved; ++attempt) {
             Eigen::Matrix<double, 6, 6> damped = H;
@@ -174,10 +180,14 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
                 continue;
             }
             moved = true;
+            // A heavily damped step is short wherever it is: only a nearly Gauss-Newton one
+            // may end the run.
+            const bool undamped = lambda <= kStopDamping;
             lambda = std::max(lambda / 10.0, 1e-12);
+            const double moved_m = (t_next - t).norm();
             R = R_next;
             t = t_next;
-            if (xi.tail<3>().norm() < config.converged_translation_m &&
+            if (undamped && moved_m < config.converged_translation_m &&
                 xi.head<3>().norm() < config.converged_rotation) {
                 return result(true);
             }
@@ -281,7 +291,7 @@ RegistrationResult RegisterScans(const PreparedCloud& source, const PreparedClou
     }
     Eigen::Matrix4f T = T_target_source_guess.matrix().cast<float>();
     if (source.Coarse() && target.Coarse()) {  // coarse stage: wide gate absorbs SC's metres
-        // Kept even when not converged: the damped steps only ever lowered the cost.
+        // Kept at the iteration cap too, as PCL's GICP kept it (fewer than 6 pairs: the guess).
         T = RunGicp(*source.Coarse(), *target.Coarse(), T, config.coarse_max_correspondence_m,
                     config)
                 .T_target_source;

@@ -17,9 +17,10 @@ struct RegistrationConfig {
     double coarse_voxel_m = 1.0;               ///< coarse stage voxel (0 = no coarse stage)
     double coarse_max_correspondence_m = 5.0;  ///< coarse-stage gate, > 0 (absorbs SC's metres)
     int max_iterations = 50;                   ///< GICP iterations per stage, >= 1
-    /// GICP stops once an iteration moves the translation less than this and every entry of
-    /// the rotation less than converged_rotation (far below registration noise: see the
-    /// sigma floors), > 0.
+    /// GICP stops once a nearly undamped step moves the translation less than this and turns
+    /// the rotation by less than converged_rotation radians (far below registration noise:
+    /// see the sigma floors); a stage that has not stopped within max_iterations has not
+    /// converged (kNotConverged), > 0.
     double converged_translation_m = 1e-4;
     double converged_rotation = 1e-5;           ///< see converged_translation_m, > 0
     int covariance_neighbours = 20;             ///< k of GICP's local covariances, >= 5

@@ -1,5 +1,5 @@
 // Quality of an alignment: fitness, point-to-plane Hessian, degeneracy test and information
-// (no PCL here: registration.cpp is the only PCL translation unit).
+// (no PCL in the front end).
 #pragma once
 
 #include <Eigen/Core>

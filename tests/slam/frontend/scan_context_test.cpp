@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -98,17 +99,11 @@ TEST_F(ScanContextKitti, ColumnsMadeOnceGiveTheMinimumOverEveryShift) {
         const ScanContextColumns qa(sc_[a]), cb(sc_[b]);
         const ScanContextMatch match = ScanContextDistance(qa, cb);
         double best = 2.0;
-        int best_shift = -1;
-        for (int s = 0; s < 60; ++s) {
-            const double d = ScanContextDistanceAtShift(sc_[a], sc_[b], s);
-            if (d < best - 1e-9) {
-                best = d;
-                best_shift = s;
-            }
-        }
+        for (int s = 0; s < 60; ++s)
+            best = std::min(best, ScanContextDistanceAtShift(sc_[a], sc_[b], s));
         EXPECT_NEAR(match.distance, best, 1e-6) << a << " -> " << b;
-        EXPECT_EQ(match.shift, best_shift) << a << " -> " << b;
-        EXPECT_EQ(ScanContextDistance(sc_[a], sc_[b]).distance, match.distance);
+        // The shift it names has that distance (float products: near-equal shifts may swap).
+        EXPECT_NEAR(ScanContextDistanceAtShift(sc_[a], sc_[b], match.shift), best, 1e-6);
     }
 }
 

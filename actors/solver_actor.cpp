@@ -2,6 +2,7 @@
 #include "actors/solver_actor.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <random>
 #include <stdexcept>
 
@@ -191,6 +192,18 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
         InSession(poses->ids.front().robot, proto->round_session(), proto->incarnation());
     if (poses->team_round > 0) {  // synchronous rounds (solver_actor_rounds.cpp)
         if (!config_.synchronous || !current) return true;
+        if (proto->overlap_depth() != std::uint32_t(config_.rounds.overlap_depth)) {
+            if (!overlap_mismatch_logged_) {  // once: every one is counted as malformed
+                overlap_mismatch_logged_ = true;
+                std::fprintf(stderr,
+                             "solver %d: dropped robot %d's round poses: its "
+                             "solver.rounds_overlap is %u, this robot's %d (the team must "
+                             "share one)\n",
+                             RobotId(), poses->ids.front().robot, proto->overlap_depth(),
+                             config_.rounds.overlap_depth);
+            }
+            return false;
+        }
         if (rounds_ && poses->staircase_level == rounds_level_) {
             rounds_->OnPoses(poses->ids.front().robot, poses->team_round - 1, *poses);
             work_ = true;

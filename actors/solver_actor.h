@@ -206,7 +206,8 @@ class SolverActor final : public NodeActor {
     std::uint64_t rounds_rejected_ = 0;               ///< proposals dropped, over every level
     int rounds_overlap_ends_ = 0;                     ///< overlaps a rise ended, over every level
     std::optional<certify::RoundBoundary> boundary_;  ///< Boundary(), of the current graph
-    bool proposals_logged_ = false;  ///< a dropped proposal was logged (once per actor)
+    bool overlap_mismatch_logged_ = false;  ///< a peer's other overlap depth was logged (once)
+    bool proposals_logged_ = false;         ///< a dropped proposal was logged (once per actor)
     std::vector<certify::PoseBlocks> early_poses_;   ///< round poses heard before rounds_ began
     std::vector<v1::SolverStatus> early_sums_;       ///< round sums heard before rounds_ began
     std::vector<v1::PublicPoses> last_round_poses_;  ///< last two rounds', re-sent on a stall

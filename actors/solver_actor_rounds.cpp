@@ -38,6 +38,7 @@ void SolverActor::SendRoundPoses(std::uint64_t round) {
     poses.sweep_color = rounds_->SweepColor();
     auto proto = ToProto(poses);
     *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
+    proto.set_overlap_depth(static_cast<std::uint32_t>(config_.rounds.overlap_depth));
     StampSession(&proto);
     Send(*poses_out_, transport::Pack(proto), true);
     KeepLastTwo(&last_round_poses_, std::move(proto));

@@ -1,7 +1,8 @@
 // Solver and certifier actors over real inproc sockets and real messages: two robots' solvers
 // exchange public poses asynchronously and reach the central certified optimum, the anchor's
 // certifier broadcasts a CERTIFIED verdict to both; a silent third robot stops nobody; in rounds
-// mode a restarted robot rejoins its converged peer, and rounds without a peer fall back.
+// mode a restarted robot rejoins its converged peer, rounds without a peer fall back, and a peer
+// with another overlap depth is dropped.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -326,6 +327,44 @@ TEST(SolverActor, RoundsWithoutProgressFallBackToAsynchronousUpdates) {
     })) << "robot 1 off the central optimum by "
         << OffCentral(asynchronous.Snapshot(), central, 1);
     EXPECT_FALSE(rounds.Snapshot().rounds_converged);
+}
+
+// Robot 1 is configured with other overlapping sweeps (solver.rounds_overlap) than robot 0: the
+// one that hears the other's round poses drops them as malformed (counted), so the rounds stall
+// and both fall back to asynchronous updates, which reach the optimum. Without the check the two
+// sweep schedules mixed and never reached it.
+TEST(SolverActor, PeerWithAnotherOverlapDepthIsDroppedAndCounted) {
+    const TwoRobotProblem problem = MakeTwoRobotProblem(20, 3, 9);
+    zmq::context_t context;
+    const std::vector<int> robots{0, 1};
+    std::vector<std::unique_ptr<SolverActor>> solvers;
+    for (int r : robots) {
+        SolverActorConfig config = RoundsConfig(problem);
+        config.rounds_stall = std::chrono::milliseconds(1000);
+        config.rounds.overlap_depth = r == 0 ? 2 : 0;
+        solvers.push_back(std::make_unique<SolverActor>(context, InprocWiring(r, robots), config));
+        solvers.back()->Start();
+    }
+    Feeder feeder(context, robots, 2);
+    feeder.Feed(problem);
+    const auto central = CentralSolution(problem);
+    ASSERT_TRUE(WaitFor([&] {
+        for (int r : robots) {
+            const auto s = solvers[r]->Snapshot();
+            if (!s.final || !s.rounds_gave_up || !s.local_ok ||
+                OffCentral(s, central, r) > kPoseTolerance) {
+                return false;
+            }
+        }
+        return true;
+    })) << "robot 1 off the central optimum by "
+        << OffCentral(solvers[1]->Snapshot(), central, 1);
+    std::uint64_t dropped = 0;  // by the robot that heard a round first (the sweep order's)
+    for (int r : robots) {
+        EXPECT_FALSE(solvers[r]->Snapshot().rounds_converged) << "robot " << r;
+        dropped += solvers[r]->Counters().dropped_malformed;
+    }
+    EXPECT_GT(dropped, 0u);
 }
 
 TEST(SolverActor, SilentNeighbourDoesNotStopTheOthers) {

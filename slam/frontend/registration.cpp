@@ -9,11 +9,13 @@
 
 #include <algorithm>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "slam/core/check.h"
 #include "slam/frontend/downsample.h"
+#include "slam/frontend/gicp_cycle.h"
 #include "slam/frontend/point_kdtree.h"
 #include "slam/frontend/registration_quality.h"
 
@@ -116,7 +118,10 @@ double GicpCost(const PreparedCloud::Stage& source, const PreparedCloud::Stage& 
 // little damping moves t by less than converged_translation_m and turns R by less than
 // converged_rotation (radians). Fewer than 6 pairs: the guess back, not converged. A closed-form
 // 6x6 Hessian per iteration in place of PCL's BFGS with line searches, which evaluates the cost
-// over every pair many times per correspondence set.
+// over every pair many times per correspondence set. When the matching cycles through 2 to 4
+// correspondence sets, the iterate returns to where it was that many steps before and would
+// repeat the cycle up to max_iterations: it stops there, converged when the cycle's iterates lie
+// within a tenth of the information's sigma floors (closer than the back end can tell).
 StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Stage& target,
                     const Eigen::Matrix4f& guess, double max_correspondence_m,
                     const RegistrationConfig& config) {
@@ -136,6 +141,7 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
     std::vector<GicpPair> pairs;
     pairs.reserve(source.points.size());
     double lambda = 1e-6;
+    GicpCycle cycle;
     for (int iteration = 0; iteration < config.max_iterations; ++iteration) {
         pairs.clear();
         Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
@@ -185,12 +191,20 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
             const bool undamped = lambda <= kStopDamping;
             lambda = std::max(lambda / 10.0, 1e-12);
             const double moved_m = (t_next - t).norm();
+            cycle.Left(R, t);
             R = R_next;
             t = t_next;
             if (undamped && moved_m < config.converged_translation_m &&
                 xi.head<3>().norm() < config.converged_rotation) {
                 return result(true);
             }
+            const std::optional<bool> closed =
+                undamped
+                    ? cycle.Closed(R, t, config.converged_translation_m, config.converged_rotation,
+                                   0.1 * config.min_translation_sigma_m,
+                                   0.1 * config.min_rotation_sigma_rad)
+                    : std::nullopt;
+            if (closed) return result(*closed);
         }
         if (!moved) return result(true);  // no damped step lowers the cost: a minimum
     }

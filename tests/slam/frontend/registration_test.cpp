@@ -9,12 +9,14 @@
 #include <cmath>
 #include <fstream>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 
 #include "slam/frontend/downsample.h"
+#include "slam/frontend/gicp_cycle.h"
 #include "slam/frontend/point_kdtree.h"
 #include "slam/frontend/registration_quality.h"
 #include "slam/frontend/scan_context.h"
@@ -238,6 +240,38 @@ TEST(Registration, PreparedCloudsReusedGiveTheSameResult) {
 
 // The planes the quality test's point-to-plane Hessian uses: on a tilted plane every point's
 // normal is the plane's, far from the origin too (float coordinates at 500 m).
+// GICP's cycle test: an iterate back where it was 2 to 4 steps before closes a cycle, converged
+// only when the cycle's iterates lie within the tight tolerance; a steady crawl and a cycle longer
+// than 4 close nothing.
+TEST(Registration, GicpCycleTellsAClosedCycleFromACrawl) {
+    const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(2e-4, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    const auto at = [](double x) { return Eigen::Vector3d(x, 0.0, 0.0); };
+    const auto closed = [&](const GicpCycle& c, const Eigen::Matrix3d& R, double x) {
+        return c.Closed(R, at(x), 1e-4, 1e-5, 0.005, 5e-4);
+    };
+    for (int k = 2; k <= GicpCycle::kLongest; ++k) {
+        GicpCycle mm, cm;  // iterates 0, 1, ..., k-1 mm (cm) along x, then back at 0
+        for (int j = 0; j < k; ++j) {
+            mm.Left(I, at(1e-3 * j));
+            cm.Left(I, at(1e-2 * j));
+        }
+        EXPECT_EQ(closed(mm, I, 0.0), std::optional<bool>(true)) << "cycle of " << k;
+        EXPECT_EQ(closed(cm, I, 0.0), std::optional<bool>(false)) << "cycle of " << k;
+        EXPECT_FALSE(closed(mm, I, 5e-4).has_value()) << "not back: " << k;
+        EXPECT_FALSE(closed(mm, turn, 0.0).has_value()) << "turned away: " << k;
+    }
+    GicpCycle crawl, longer;
+    for (int j = 0; j < 10; ++j) crawl.Left(I, at(1e-3 * j));
+    EXPECT_FALSE(closed(crawl, I, 1e-2).has_value());
+    for (int j = 0; j < GicpCycle::kLongest + 1; ++j) longer.Left(I, at(1e-3 * j));
+    EXPECT_FALSE(closed(longer, I, 0.0).has_value());  // 5 sets: beyond the iterates kept
+    GicpCycle once;  // one step back and forth is a step, not a cycle
+    once.Left(I, at(0.0));
+    EXPECT_FALSE(closed(once, I, 0.0).has_value());
+}
+
 TEST(Registration, LocalPlaneNormalsAreThePlanesNormalFarFromTheOrigin) {
     const Eigen::Vector3d n = Eigen::Vector3d(-0.5, 0.2, 1.0).normalized();
     for (const float offset : {0.0f, 500.0f}) {

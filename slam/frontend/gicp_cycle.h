@@ -1,0 +1,53 @@
+// GICP iterates that cycle through correspondence sets (RunGicp, registration.cpp): the matching
+// alternates between 2 to 4 sets and the iterate comes back to where it was, so no later
+// iteration changes anything.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <deque>
+#include <optional>
+#include <utility>
+
+namespace certislam::slam {
+
+/// The last accepted iterates (R, t) of one GICP run, newest first.
+class GicpCycle {
+  public:
+    static constexpr int kLongest = 4;  ///< longest cycle told, in correspondence sets
+
+    /// Records the iterate an accepted step moved away from.
+    void Left(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
+        before_.emplace_front(R, t);
+        if (static_cast<int>(before_.size()) > kLongest) before_.pop_back();
+    }
+
+    /// nullopt when (R, t) is not back within (same_m, same_rad) of the iterate 2 to kLongest
+    /// steps before; else whether every iterate of that cycle lies within (tight_m, tight_rad)
+    /// of (R, t).
+    std::optional<bool> Closed(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double same_m,
+                               double same_rad, double tight_m, double tight_rad) const {
+        for (int k = 2; k <= static_cast<int>(before_.size()); ++k) {
+            const auto [back_m, back_rad] = Apart(R, t, before_[k - 1]);
+            if (back_m >= same_m || back_rad >= same_rad) continue;
+            bool tight = true;
+            for (int j = 0; j < k - 1; ++j) {
+                const auto [m, rad] = Apart(R, t, before_[j]);
+                tight = tight && m <= tight_m && rad <= tight_rad;
+            }
+            return tight;
+        }
+        return std::nullopt;
+    }
+
+  private:
+    using Iterate = std::pair<Eigen::Matrix3d, Eigen::Vector3d>;
+    /// Metres and radians between (R, t) and `b`.
+    static std::pair<double, double> Apart(const Eigen::Matrix3d& R, const Eigen::Vector3d& t,
+                                           const Iterate& b) {
+        return {(t - b.second).norm(), Eigen::AngleAxisd(R * b.first.transpose()).angle()};
+    }
+    std::deque<Iterate> before_;
+};
+
+}  // namespace certislam::slam

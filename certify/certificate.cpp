@@ -11,6 +11,8 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "certify/min_eigenpair.h"
 #include "certify/saddle_escape.h"
@@ -77,15 +79,24 @@ SparseMatrix GaugeFixedShifted(const SparseMatrix& S, int d, double eta) {
 }
 
 /// Cholesky tests of S + eta D for several eta: the gauge-fixed matrix and CHOLMOD's symbolic
-/// analysis are built once, each eta costs one numeric factorization.
+/// analysis are built once, each eta costs one numeric factorization of that matrix with its
+/// shifted diagonal set in place (no copy beside CHOLMOD's factor, the anchor's peak memory).
 class PsdTest {
   public:
     // The lower triangle alone: the factorisation reads no more (half the copies per test).
     PsdTest(const SparseMatrix& S, int d)
         : base_(GaugeFixedShifted(S, d, 0.0).triangularView<Eigen::Lower>()) {
+        base_.makeCompressed();
         for (int i = 0; i < S.rows(); ++i) {
             if (i % (d + 1) == d) continue;  // translation entry: no shift
-            shifted_.push_back(i > d ? i - 1 : i);
+            const int r = i > d ? i - 1 : i;
+            // GaugeFixedShifted stored every shifted diagonal entry (an explicit 0 + eta).
+            const auto* first = base_.innerIndexPtr() + base_.outerIndexPtr()[r];
+            const auto* last = base_.innerIndexPtr() + base_.outerIndexPtr()[r + 1];
+            const auto* at = std::find(first, last, r);
+            CERTISLAM_CHECK(at != last && *at == r);
+            const auto k = static_cast<std::size_t>(at - base_.innerIndexPtr());
+            shifted_.emplace_back(k, base_.valuePtr()[k]);
         }
         factor_.cholmod().print = 0;  // a failure is an expected outcome (not certified)
         factor_.setMode(Eigen::CholmodSupernodalLLt);  // LDL^T would accept indefinite matrices
@@ -93,15 +104,16 @@ class PsdTest {
     }
 
     bool PsdAt(double eta) {
-        SparseMatrix M = base_;
-        for (int r : shifted_) M.coeffRef(r, r) += eta;
-        factor_.factorize(M);
+        double* values = base_.valuePtr();
+        for (const auto& [k, value] : shifted_) values[k] = value + eta;
+        factor_.factorize(base_);
+        for (const auto& [k, value] : shifted_) values[k] = value;
         return factor_.info() == Eigen::Success;
     }
 
   private:
     SparseMatrix base_;
-    std::vector<int> shifted_;
+    std::vector<std::pair<std::size_t, double>> shifted_;  ///< diagonal entries' value index, value
     Eigen::CholmodDecomposition<SparseMatrix, Eigen::Lower> factor_;
 };
 

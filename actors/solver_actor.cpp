@@ -192,7 +192,8 @@ bool SolverActor::OnPublicPoses(const transport::Message& m) {
         InSession(poses->ids.front().robot, proto->round_session(), proto->incarnation());
     if (poses->team_round > 0) {  // synchronous rounds (solver_actor_rounds.cpp)
         if (!config_.synchronous || !current) return true;
-        if (proto->overlap_depth() != std::uint32_t(config_.rounds.overlap_depth)) {
+        if (proto->has_overlap_depth() &&
+            proto->overlap_depth() != std::uint32_t(config_.rounds.overlap_depth)) {
             if (!overlap_mismatch_logged_) {  // once: every one is counted as malformed
                 overlap_mismatch_logged_ = true;
                 std::fprintf(stderr,

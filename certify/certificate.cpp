@@ -80,7 +80,8 @@ SparseMatrix GaugeFixedShifted(const SparseMatrix& S, int d, double eta) {
 
 /// Cholesky tests of S + eta D for several eta: the gauge-fixed matrix and CHOLMOD's symbolic
 /// analysis are built once, each eta costs one numeric factorization of that matrix with its
-/// shifted diagonal set in place (no copy beside CHOLMOD's factor, the anchor's peak memory).
+/// shifted diagonal set in place (no copy of it of our own beside CHOLMOD's: the anchor's peak
+/// memory is that factorization).
 class PsdTest {
   public:
     // The lower triangle alone: the factorisation reads no more (half the copies per test).

@@ -185,9 +185,9 @@ std::vector<ConfigKey> SolverAndCertifierKeys() {
             "solver.rounds_overlap",
             [](TeamConfig & c, int) -> auto& { return c.node.solver.rounds.overlap_depth; },
             {0.0, 16.0},
-            "solver.mode rounds: a robot's sweep also moves the poses of later-sweeping "
-            "neighbours within this many edges of its own, and they go on from there "
-            "(overlapping blocks; 0: own poses only)"),
+            "solver.mode rounds: a robot's sweep also moves the poses of later-sweeping neighbours "
+            "within this many edges of its own, and they go on from there (overlapping blocks; 0: "
+            "own poses only); one value per team: round poses of another are dropped (counted)"),
         Num<double>(
             "solver.odometry_sigma_t_m", [](TeamConfig & c, int) -> auto& {
                 return c.node.solver.solver.noise.odometry_sigma_t_m;

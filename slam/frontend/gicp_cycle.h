@@ -1,6 +1,6 @@
 // GICP iterates that cycle through correspondence sets (RunGicp, registration.cpp): the matching
-// alternates between 2 to 4 sets and the iterate comes back to where it was, so no later
-// iteration changes anything.
+// alternates between 2 to 4 sets, the iterate comes back to where it was after nearly undamped
+// steps, and further iterations would only repeat the cycle.
 #pragma once
 
 #include <Eigen/Core>

@@ -111,6 +111,39 @@ double GicpCost(const PreparedCloud::Stage& source, const PreparedCloud::Stage& 
     return cost;
 }
 
+/// Segal et al.'s Eq. (2) linearised at (R, t): every source point matched to its nearest target
+/// point within sqrt(gate) (into `pairs`), the Gauss-Newton Hessian H and gradient g of the left
+/// perturbation; returns the cost.
+double LinearizeGicp(const PreparedCloud::Stage& source, const PreparedCloud::Stage& target,
+                     const Eigen::Matrix3d& R, const Eigen::Vector3d& t, float gate,
+                     std::vector<GicpPair>* pairs, Eigen::Matrix<double, 6, 6>* H,
+                     Eigen::Matrix<double, 6, 1>* g) {
+    pairs->clear();
+    H->setZero();
+    g->setZero();
+    double cost = 0.0;
+    for (std::size_t i = 0; i < source.points.size(); ++i) {
+        const Eigen::Vector3d q = R * source.points[i].cast<double>() + t;
+        std::size_t j = 0;
+        float squared = 0.0f;
+        if (!target.tree->Nearest(q.cast<float>(), j, squared) || squared > gate) continue;
+        const Eigen::Matrix3d W =
+            (target.covariances[j] + R * source.covariances[i] * R.transpose()).inverse();
+        pairs->push_back({i, j, W});
+        const Eigen::Vector3d d = target.points[j].cast<double>() - q;
+        // d(d)/d(xi) = [q]x for the rotation part, -I for the translation part.
+        Eigen::Matrix<double, 3, 6> J;
+        J << 0.0, -q.z(), q.y(), -1.0, 0.0, 0.0,  //
+            q.z(), 0.0, -q.x(), 0.0, -1.0, 0.0,   //
+            -q.y(), q.x(), 0.0, 0.0, 0.0, -1.0;
+        const Eigen::Matrix<double, 6, 3> JtW = J.transpose() * W;
+        H->noalias() += JtW * J;
+        g->noalias() += JtW * d;
+        cost += d.dot(W * d);
+    }
+    return cost;
+}
+
 // One GICP run from `guess` on prepared stages: each iteration matches every source point to its
 // nearest target point within the gate, weighs the pair by (C_t + R C_s R^T)^-1 (Segal et al.
 // 2009, Eq. (2)) and takes a Levenberg-Marquardt-damped Gauss-Newton step on the left
@@ -118,8 +151,8 @@ double GicpCost(const PreparedCloud::Stage& source, const PreparedCloud::Stage& 
 // little damping moves t by less than converged_translation_m and turns R by less than
 // converged_rotation (radians). Fewer than 6 pairs: the guess back, not converged. A closed-form
 // 6x6 Hessian per iteration in place of PCL's BFGS with line searches, which evaluates the cost
-// over every pair many times per correspondence set. When the matching cycles through 2 to 4
-// correspondence sets, the iterate returns to where it was that many steps before and would
+// over every pair many times per correspondence set. When nearly undamped steps cycle through 2
+// to 4 correspondence sets, the iterate returns to where it was that many steps before and would
 // repeat the cycle up to max_iterations: it stops there, converged when the cycle's iterates lie
 // within a tenth of the information's sigma floors (closer than the back end can tell).
 StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Stage& target,
@@ -142,30 +175,10 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
     pairs.reserve(source.points.size());
     double lambda = 1e-6;
     GicpCycle cycle;
+    Eigen::Matrix<double, 6, 6> H;
+    Eigen::Matrix<double, 6, 1> g;
     for (int iteration = 0; iteration < config.max_iterations; ++iteration) {
-        pairs.clear();
-        Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
-        Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
-        double cost = 0.0;
-        for (std::size_t i = 0; i < source.points.size(); ++i) {
-            const Eigen::Vector3d q = R * source.points[i].cast<double>() + t;
-            std::size_t j = 0;
-            float squared = 0.0f;
-            if (!target.tree->Nearest(q.cast<float>(), j, squared) || squared > gate) continue;
-            const Eigen::Matrix3d W =
-                (target.covariances[j] + R * source.covariances[i] * R.transpose()).inverse();
-            pairs.push_back({i, j, W});
-            const Eigen::Vector3d d = target.points[j].cast<double>() - q;
-            // d(d)/d(xi) = [q]x for the rotation part, -I for the translation part.
-            Eigen::Matrix<double, 3, 6> J;
-            J << 0.0, -q.z(), q.y(), -1.0, 0.0, 0.0,  //
-                q.z(), 0.0, -q.x(), 0.0, -1.0, 0.0,   //
-                -q.y(), q.x(), 0.0, 0.0, 0.0, -1.0;
-            const Eigen::Matrix<double, 6, 3> JtW = J.transpose() * W;
-            H.noalias() += JtW * J;
-            g.noalias() += JtW * d;
-            cost += d.dot(W * d);
-        }
+        const double cost = LinearizeGicp(source, target, R, t, gate, &pairs, &H, &g);
         if (static_cast<int>(pairs.size()) < kMinPairs) {  // lost the overlap: nothing to trust
             R = T0.topLeftCorner<3, 3>();
             t = T0.topRightCorner<3, 1>();
@@ -191,7 +204,11 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
             const bool undamped = lambda <= kStopDamping;
             lambda = std::max(lambda / 10.0, 1e-12);
             const double moved_m = (t_next - t).norm();
-            cycle.Left(R, t);
+            if (undamped) {
+                cycle.Left(R, t);
+            } else {
+                cycle = GicpCycle();  // a cycle is of nearly Gauss-Newton steps only
+            }
             R = R_next;
             t = t_next;
             if (undamped && moved_m < config.converged_translation_m &&

@@ -20,10 +20,10 @@ struct RegistrationConfig {
     /// GICP stops once a nearly undamped step moves the translation less than this and turns
     /// the rotation by less than converged_rotation radians (far below registration noise:
     /// see the sigma floors); a stage that has not stopped within max_iterations has not
-    /// converged (kNotConverged). One whose matching cycles through 2 to 4 correspondence sets
-    /// (the iterate back where it was that many steps before) stops there, converged when the
-    /// cycle's iterates lie within a tenth of min_translation_sigma_m and
-    /// min_rotation_sigma_rad, > 0.
+    /// converged (kNotConverged). One whose nearly undamped steps cycle through 2 to 4
+    /// correspondence sets (the iterate back where it was that many steps before) stops there,
+    /// converged when the cycle's iterates lie within a tenth of min_translation_sigma_m and
+    /// min_rotation_sigma_rad. Metres, > 0.
     double converged_translation_m = 1e-4;
     double converged_rotation = 1e-5;           ///< see converged_translation_m, > 0
     int covariance_neighbours = 20;             ///< k of GICP's local covariances, >= 5

@@ -341,7 +341,7 @@ TEST(SolverActor, PeerWithAnotherOverlapDepthIsDroppedAndCounted) {
     for (int r : robots) {
         SolverActorConfig config = RoundsConfig(problem);
         config.rounds_stall = std::chrono::milliseconds(1000);
-        config.rounds.overlap_depth = r == 0 ? 2 : 0;
+        config.rounds.overlap_depth = r == 0 ? 2 : 4;  // neither is the proto's default 0
         solvers.push_back(std::make_unique<SolverActor>(context, InprocWiring(r, robots), config));
         solvers.back()->Start();
     }

@@ -238,8 +238,6 @@ TEST(Registration, PreparedCloudsReusedGiveTheSameResult) {
     EXPECT_FALSE(prepared_a.PreparedFor(config));
 }
 
-// The planes the quality test's point-to-plane Hessian uses: on a tilted plane every point's
-// normal is the plane's, far from the origin too (float coordinates at 500 m).
 // GICP's cycle test: an iterate back where it was 2 to 4 steps before closes a cycle, converged
 // only when the cycle's iterates lie within the tight tolerance; a steady crawl and a cycle longer
 // than 4 close nothing.
@@ -267,11 +265,18 @@ TEST(Registration, GicpCycleTellsAClosedCycleFromACrawl) {
     EXPECT_FALSE(closed(crawl, I, 1e-2).has_value());
     for (int j = 0; j < GicpCycle::kLongest + 1; ++j) longer.Left(I, at(1e-3 * j));
     EXPECT_FALSE(closed(longer, I, 0.0).has_value());  // 5 sets: beyond the iterates kept
-    GicpCycle once;  // one step back and forth is a step, not a cycle
-    once.Left(I, at(0.0));
-    EXPECT_FALSE(closed(once, I, 0.0).has_value());
+    GicpCycle still;  // one step that did not move: the plain stop rule's case, not a cycle
+    still.Left(I, at(0.0));
+    EXPECT_FALSE(closed(still, I, 0.0).has_value());
+    // Tight in translation, one iterate of the cycle turned by 1e-3 rad: not converged.
+    GicpCycle turned;
+    turned.Left(I, at(0.0));
+    turned.Left(Eigen::AngleAxisd(1e-3, Eigen::Vector3d::UnitZ()).toRotationMatrix(), at(1e-3));
+    EXPECT_EQ(closed(turned, I, 0.0), std::optional<bool>(false));
 }
 
+// The planes the quality test's point-to-plane Hessian uses: on a tilted plane every point's
+// normal is the plane's, far from the origin too (float coordinates at 500 m).
 TEST(Registration, LocalPlaneNormalsAreThePlanesNormalFarFromTheOrigin) {
     const Eigen::Vector3d n = Eigen::Vector3d(-0.5, 0.2, 1.0).normalized();
     for (const float offset : {0.0f, 500.0f}) {

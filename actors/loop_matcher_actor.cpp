@@ -109,7 +109,13 @@ void LoopMatcherActor::OnStart() {
 }
 
 void LoopMatcherActor::OnOwnKeyframe(const slam::Keyframe& keyframe) {
-    own_clouds_[keyframe.index] = keyframe.cloud;
+    // Every own keyframe's cloud is kept for the life of the mission (any later query may match
+    // it): at the registration voxel, the finest any registration or reply uses, not the scan's
+    // full resolution.
+    own_clouds_[keyframe.index] = config_.downsample_replies
+                                      ? std::make_shared<slam::PointCloud>(slam::VoxelDownsample(
+                                            *keyframe.cloud, config_.registration.voxel_m))
+                                      : keyframe.cloud;
     if (own_odometry_.count(keyframe.index)) return;
     slam::KeyframeOdometry odometry{keyframe.T_odom_sensor, 0.0};
     if (const auto before = own_odometry_.find(keyframe.index - 1); before != own_odometry_.end()) {
@@ -208,16 +214,9 @@ void LoopMatcherActor::RequestCloud(std::uint64_t id, const Pending& p) {
 }
 
 slam::PointCloudPtr LoopMatcherActor::ReplyCloud(int index) {
+    // Kept at the registration voxel (OnOwnKeyframe), where the requester registers anyway.
     const auto own = own_clouds_.find(index);
-    if (own == own_clouds_.end()) return nullptr;
-    if (!config_.downsample_replies) return own->second;
-    // The requester registers at this voxel anyway: a finer cloud would cross for nothing.
-    auto& reply = reply_clouds_[index];
-    if (!reply) {
-        reply = std::make_shared<slam::PointCloud>(
-            slam::VoxelDownsample(*own->second, config_.registration.voxel_m));
-    }
-    return reply;
+    return own == own_clouds_.end() ? nullptr : own->second;
 }
 
 bool LoopMatcherActor::OnCloudRequest(const transport::Message& m) {

@@ -55,7 +55,9 @@ struct LoopMatcherConfig {
     /// >= 0: an inter-robot candidate within this window of an admitted one on both robots is
     /// skipped. 0: every candidate is verified (each peer cloud is still fetched only once).
     int place_window = 0;
-    bool downsample_replies = true;  ///< cloud replies downsampled at registration.voxel_m
+    /// Own keyframe clouds kept and sent in cloud replies downsampled at registration.voxel_m
+    /// (else at full resolution).
+    bool downsample_replies = true;
     /// Candidates registered per own keyframe and robot it is matched against, >= 0: the best
     /// by Scan Context distance among the descriptors at hand (0: every candidate). In a
     /// featureless place (a tunnel) one keyframe resembles a whole stretch of the other's.
@@ -154,9 +156,8 @@ class LoopMatcherActor final : public NodeActor {
     LoopMatcherConfig config_;
     transport::Endpoint* loops_out_ = nullptr;
     transport::Endpoint* clouds_server_ = nullptr;
-    std::map<int, transport::Endpoint*> cloud_clients_;        ///< lower robot -> dealer
-    std::map<int, slam::PointCloudPtr> own_clouds_;            ///< own keyframe -> cloud
-    std::map<int, slam::PointCloudPtr> reply_clouds_;          ///< own keyframe -> as sent
+    std::map<int, transport::Endpoint*> cloud_clients_;  ///< lower robot -> dealer
+    std::map<int, slam::PointCloudPtr> own_clouds_;      ///< own keyframe -> cloud (as kept, sent)
     std::map<slam::PoseId, slam::PointCloudPtr> peer_clouds_;  ///< fetched, kept (gate: once)
     std::map<slam::PoseId, std::vector<slam::LoopCandidate>> waiting_;  ///< on a fetch
     std::map<slam::PoseId, std::shared_ptr<LazyPrepared>> prepared_;

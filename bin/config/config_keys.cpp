@@ -275,7 +275,7 @@ std::vector<ConfigKey> MatcherKeys() {
         Flag(
             "matcher.downsample_replies",
             [](TeamConfig & c, int) -> auto& { return c.node.matcher.downsample_replies; },
-            "downsample cloud replies at registration.voxel_m"),
+            "keep own keyframe clouds and send cloud replies downsampled at registration.voxel_m"),
         Num<double>(
             "matcher.registration.voxel_m",
             [](TeamConfig & c, int) -> auto& { return c.node.matcher.registration.voxel_m; },

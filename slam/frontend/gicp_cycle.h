@@ -5,7 +5,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <deque>
+#include <algorithm>
+#include <array>
 #include <optional>
 #include <utility>
 
@@ -18,8 +19,9 @@ class GicpCycle {
 
     /// Records the iterate an accepted step moved away from.
     void Left(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
-        before_.emplace_front(R, t);
-        if (static_cast<int>(before_.size()) > kLongest) before_.pop_back();
+        for (int k = std::min(kept_, kLongest - 1); k > 0; --k) before_[k] = before_[k - 1];
+        before_[0] = {R, t};
+        kept_ = std::min(kept_ + 1, kLongest);
     }
 
     /// nullopt when (R, t) is not back within (same_m, same_rad) of the iterate 2 to kLongest
@@ -27,7 +29,7 @@ class GicpCycle {
     /// of (R, t).
     std::optional<bool> Closed(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double same_m,
                                double same_rad, double tight_m, double tight_rad) const {
-        for (int k = 2; k <= static_cast<int>(before_.size()); ++k) {
+        for (int k = 2; k <= kept_; ++k) {
             const auto [back_m, back_rad] = Apart(R, t, before_[k - 1]);
             if (back_m >= same_m || back_rad >= same_rad) continue;
             bool tight = true;
@@ -47,7 +49,8 @@ class GicpCycle {
                                            const Iterate& b) {
         return {(t - b.second).norm(), Eigen::AngleAxisd(R * b.first.transpose()).angle()};
     }
-    std::deque<Iterate> before_;
+    std::array<Iterate, kLongest> before_{};
+    int kept_ = 0;  ///< iterates in before_, newest first
 };
 
 }  // namespace certislam::slam

@@ -215,12 +215,10 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
                 xi.head<3>().norm() < config.converged_rotation) {
                 return result(true);
             }
-            const std::optional<bool> closed =
-                undamped
-                    ? cycle.Closed(R, t, config.converged_translation_m, config.converged_rotation,
-                                   0.1 * config.min_translation_sigma_m,
-                                   0.1 * config.min_rotation_sigma_rad)
-                    : std::nullopt;
+            // After a damped step the history is empty and no cycle is closed.
+            const std::optional<bool> closed = cycle.Closed(
+                R, t, config.converged_translation_m, config.converged_rotation,
+                0.1 * config.min_translation_sigma_m, 0.1 * config.min_rotation_sigma_rad);
             if (closed) return result(*closed);
         }
         if (!moved) return result(true);  // no damped step lowers the cost: a minimum

@@ -6,8 +6,10 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <array>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <numbers>
 #include <optional>
 #include <random>
@@ -321,6 +323,37 @@ TEST(Downsample, VoxelCountMatchesReadmeWithinFewPercent) {
     const PointCloud scan = Load("mulran_kaist03_keyframes/Scans/000000.pcd");
     const PointCloud down = VoxelDownsample(scan, 0.2);
     EXPECT_NEAR(static_cast<double>(down.size()), 23837.0, 0.03 * 23837.0);  // README's count
+}
+
+// The flat hash table (open addressing) against the definition: voxels in the order first seen,
+// each the mean of its finite points, over a cloud dense enough to probe long runs (many points
+// per voxel, negative coordinates) and a NaN.
+TEST(Downsample, CentroidsInFirstSeenOrderMatchTheDefinition) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-3.0F, 3.0F);
+    PointCloud cloud;
+    for (int i = 0; i < 20000; ++i) cloud.emplace_back(u(rng), u(rng), 0.1F * u(rng));
+    cloud.emplace_back(std::nanf(""), 0.0F, 0.0F);
+    const double inv = 1.0 / 0.2;  // as VoxelDownsample computes the voxel
+    std::vector<std::array<std::int64_t, 3>> order;
+    std::map<std::array<std::int64_t, 3>, std::pair<Eigen::Vector3d, int>> voxels;
+    for (const Eigen::Vector3f& p : cloud) {
+        if (!p.allFinite()) continue;
+        const std::array<std::int64_t, 3> v{static_cast<std::int64_t>(std::floor(p.x() * inv)),
+                                            static_cast<std::int64_t>(std::floor(p.y() * inv)),
+                                            static_cast<std::int64_t>(std::floor(p.z() * inv))};
+        auto [it, inserted] = voxels.try_emplace(v, Eigen::Vector3d::Zero(), 0);
+        if (inserted) order.push_back(v);
+        it->second.first += p.cast<double>();
+        ++it->second.second;
+    }
+    const PointCloud down = VoxelDownsample(cloud, 0.2);
+    ASSERT_EQ(down.size(), order.size());
+    ASSERT_GT(cloud.size(), 2 * order.size());  // several points per voxel
+    for (std::size_t k = 0; k < order.size(); ++k) {
+        const auto& [sum, n] = voxels.at(order[k]);
+        EXPECT_EQ(down[k], Eigen::Vector3f((sum / n).cast<float>())) << "voxel " << k;
+    }
 }
 
 }  // namespace

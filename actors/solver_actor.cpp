@@ -32,6 +32,7 @@ SolverActor::SolverActor(zmq::context_t& context, const TeamWiring& wiring,
     config_.Validate();
     std::random_device random;
     incarnation_ = (std::uint64_t{random()} << 32 | random()) | 1;
+    moving_bundle_wait_ = config_.bundle_period;
 }
 
 SolverSnapshot SolverActor::Snapshot() const {
@@ -229,6 +230,7 @@ void SolverActor::Changed() {
     restored_ = false;
     work_ = true;
     bundle_dirty_ = true;
+    moving_bundle_wait_ = config_.bundle_period;  // a new graph's bundle goes out promptly
     changed_ = std::chrono::steady_clock::now();
 }
 
@@ -267,10 +269,10 @@ void SolverActor::Tick() {
     // A step that moved the block is published (within publish_period) even when it ends below
     // tolerance: otherwise the team's last refinements travel only with the heartbeat.
     if (!local_ok_ || step.moved) bundle_dirty_ = true;
+    if (step.moved) last_move_ = std::chrono::steady_clock::now();
     if (!local_ok_ || step.rebuilt || step.moved) publish_pending_ = true;
     if (publish_pending_ && PublishDue()) Publish();
-    const auto now = std::chrono::steady_clock::now();
-    if (local_ok_ && bundle_dirty_ && now - last_bundle_ >= config_.bundle_period) SendBundle();
+    if (bundle_dirty_ && BundleDue(std::chrono::steady_clock::now())) SendBundle();
     UpdateSnapshot();
 }
 
@@ -341,13 +343,32 @@ void SolverActor::Heartbeat() {
         *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
         Send(*poses_out_, transport::Pack(proto), true);
     }
-    const auto now = std::chrono::steady_clock::now();
-    if (local_ok_ && (bundle_dirty_ || now - last_bundle_ > std::chrono::seconds(1))) SendBundle();
+    if (BundleDue(std::chrono::steady_clock::now())) SendBundle();
     work_ = work_ || !local_ok_;
     UpdateSnapshot();
 }
 
+bool SolverActor::BlockAtRest(std::chrono::steady_clock::time_point now) const {
+    return now - last_move_ >= config_.bundle_period;
+}
+
+bool SolverActor::BundleDue(std::chrono::steady_clock::time_point now) const {
+    if (!local_ok_) return false;
+    if (!bundle_dirty_) return now - last_bundle_ >= unchanged_bundle_wait_;
+    return now - last_bundle_ >= (BlockAtRest(now) ? config_.bundle_period : moving_bundle_wait_);
+}
+
 void SolverActor::SendBundle() {
+    // The next bundle of a still moving block, or the next re-send of this one, waits twice as
+    // long (BundleDue).
+    if (bundle_dirty_) {
+        moving_bundle_wait_ = BlockAtRest(std::chrono::steady_clock::now())
+                                  ? config_.bundle_period
+                                  : std::min(2 * moving_bundle_wait_, kLongestBundleWait);
+        unchanged_bundle_wait_ = std::chrono::seconds(1);
+    } else {
+        unchanged_bundle_wait_ = std::min(2 * unchanged_bundle_wait_, kLongestBundleWait);
+    }
     bool final = keyframes_ended_;
     for (int r : Wiring().robots) final = final && loops_ended_.count(r) > 0;
     // Status, own edges, then the full block that closes the bundle: only once this robot is

@@ -354,23 +354,26 @@ bool SolverActor::BlockAtRest(std::chrono::steady_clock::time_point now) const {
 
 bool SolverActor::BundleDue(std::chrono::steady_clock::time_point now) const {
     if (!local_ok_) return false;
+    if (!IsFinal()) {  // the mapper's trajectory alone: as often as before the back-off
+        return now - last_bundle_ >= (bundle_dirty_ ? config_.bundle_period : kFirstResend);
+    }
     if (!bundle_dirty_) return now - last_bundle_ >= unchanged_bundle_wait_;
     return now - last_bundle_ >= (BlockAtRest(now) ? config_.bundle_period : moving_bundle_wait_);
 }
 
 void SolverActor::SendBundle() {
-    // The next bundle of a still moving block, or the next re-send of this one, waits twice as
-    // long (BundleDue).
-    if (bundle_dirty_) {
+    const bool final = IsFinal();
+    // The next full bundle of a still moving block, or the next re-send of this one, waits twice
+    // as long (BundleDue), never less than bundle_period.
+    const auto longest = std::max(config_.bundle_period, kLongestBundleWait);
+    if (final && bundle_dirty_) {
         moving_bundle_wait_ = BlockAtRest(std::chrono::steady_clock::now())
                                   ? config_.bundle_period
-                                  : std::min(2 * moving_bundle_wait_, kLongestBundleWait);
-        unchanged_bundle_wait_ = std::chrono::seconds(1);
-    } else {
-        unchanged_bundle_wait_ = std::min(2 * unchanged_bundle_wait_, kLongestBundleWait);
+                                  : std::min(2 * moving_bundle_wait_, longest);
+        unchanged_bundle_wait_ = kFirstResend;
+    } else if (final) {
+        unchanged_bundle_wait_ = std::min(2 * unchanged_bundle_wait_, longest);
     }
-    bool final = keyframes_ended_;
-    for (int r : Wiring().robots) final = final && loops_ended_.count(r) > 0;
     // Status, own edges, then the full block that closes the bundle: only once this robot is
     // final. The certifiers check only when every robot is (CertifierActor::Assemble), so an
     // earlier bundle would be bytes for nothing.

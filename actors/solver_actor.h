@@ -145,6 +145,12 @@ class SolverActor final : public NodeActor {
     void SendStatus();
     void Heartbeat();
     void SendBundle();
+    static constexpr std::chrono::milliseconds kFirstResend{std::chrono::seconds(1)};
+    static constexpr std::chrono::milliseconds kLongestBundleWait{std::chrono::seconds(4)};
+    /// No asynchronous step moved the block for bundle_period.
+    bool BlockAtRest(std::chrono::steady_clock::time_point now) const;
+    /// A bundle is due: local convergence, and the wait for a changed or an unchanged one passed.
+    bool BundleDue(std::chrono::steady_clock::time_point now) const;
     void Publish();
     bool PublishDue() const;  ///< publish_period passed, or the graph final or settled
     void UpdateSnapshot();
@@ -178,19 +184,15 @@ class SolverActor final : public NodeActor {
     std::uint64_t steps_ = 0;
     double grad_norm_ = 0.0;
     std::chrono::steady_clock::time_point last_bundle_{};
-    /// Bundles of a block that keeps moving (asynchronous steps of a team that has not converged:
+    /// Once final, a bundle carries the own edges and the full block to every peer's certifier.
+    /// Those of a block that keeps moving (asynchronous steps of a team that has not converged:
     /// it moved within bundle_period) go out ever less often, from bundle_period up to
-    /// kLongestBundleWait: each is a full copy of the own edges and block that every peer's
-    /// certifier receives. One at rest goes out within bundle_period; an unchanged one is re-sent
-    /// after 1 s, then ever less often up to kLongestBundleWait (a new reader gets it at once:
-    /// bundle_owed_).
+    /// kLongestBundleWait; one at rest goes out about bundle_period after its last move; an
+    /// unchanged one is re-sent after kFirstResend, then ever less often up to kLongestBundleWait
+    /// (a new reader gets it at once: bundle_owed_).
     std::chrono::milliseconds moving_bundle_wait_{};
-    std::chrono::milliseconds unchanged_bundle_wait_{std::chrono::seconds(1)};
+    std::chrono::milliseconds unchanged_bundle_wait_{kFirstResend};
     std::chrono::steady_clock::time_point last_move_{};  ///< of an asynchronous step
-    static constexpr std::chrono::milliseconds kLongestBundleWait{4000};
-    bool BlockAtRest(std::chrono::steady_clock::time_point now) const;
-    /// A bundle is due: local convergence, and the wait for a changed or an unchanged one passed.
-    bool BundleDue(std::chrono::steady_clock::time_point now) const;
     std::size_t bundle_readers_ = 0;  ///< subscribers of the bundle stream at the last tick
     /// A new bundle reader came while the block was not locally converged: its bundle goes out
     /// as soon as it is (not a bundle_period later).

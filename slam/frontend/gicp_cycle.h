@@ -24,6 +24,9 @@ class GicpCycle {
         kept_ = std::min(kept_ + 1, kLongest);
     }
 
+    /// Forgets every iterate (after a damped step).
+    void Clear() { kept_ = 0; }
+
     /// nullopt when (R, t) is not back within (same_m, same_rad) of the iterate 2 to kLongest
     /// steps before; else whether every iterate of that cycle lies within (tight_m, tight_rad)
     /// of (R, t).

@@ -207,7 +207,7 @@ StageResult RunGicp(const PreparedCloud::Stage& source, const PreparedCloud::Sta
             if (undamped) {
                 cycle.Left(R, t);
             } else {
-                cycle = GicpCycle();  // a cycle is of nearly Gauss-Newton steps only
+                cycle.Clear();  // a cycle is of nearly Gauss-Newton steps only
             }
             R = R_next;
             t = t_next;

@@ -326,8 +326,7 @@ TEST(Downsample, VoxelCountMatchesReadmeWithinFewPercent) {
 }
 
 // The flat hash table (open addressing) against the definition: voxels in the order first seen,
-// each the mean of its finite points, over a cloud dense enough to probe long runs (many points
-// per voxel, negative coordinates) and a NaN.
+// each the mean of its finite points (several per voxel, negative coordinates), a NaN skipped.
 TEST(Downsample, CentroidsInFirstSeenOrderMatchTheDefinition) {
     std::mt19937 rng(5);
     std::uniform_real_distribution<float> u(-3.0F, 3.0F);
@@ -354,6 +353,22 @@ TEST(Downsample, CentroidsInFirstSeenOrderMatchTheDefinition) {
         const auto& [sum, n] = voxels.at(order[k]);
         EXPECT_EQ(down[k], Eigen::Vector3f((sum / n).cast<float>())) << "voxel " << k;
     }
+}
+
+// One point at the centre of each of 2^15 voxels fills the table to its largest load (1/2), so
+// probes run long and wrap past its end: every point comes back as its voxel, in order.
+TEST(Downsample, TableAtHalfLoadKeepsEveryVoxel) {
+    PointCloud cloud;
+    for (int x = -16; x < 16; ++x) {
+        for (int y = -16; y < 16; ++y) {
+            for (int z = -16; z < 16; ++z) cloud.emplace_back(0.5F * x + 0.25F, 0.5F * y, 0.5F * z);
+        }
+    }
+    for (Eigen::Vector3f& p : cloud) p += Eigen::Vector3f(0.0F, 0.25F, 0.25F);
+    ASSERT_EQ(cloud.size(), std::size_t{1} << 15);
+    const PointCloud down = VoxelDownsample(cloud, 0.5);
+    ASSERT_EQ(down.size(), cloud.size());
+    for (std::size_t k = 0; k < cloud.size(); ++k) EXPECT_EQ(down[k], cloud[k]) << "point " << k;
 }
 
 }  // namespace

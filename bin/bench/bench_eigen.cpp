@@ -75,12 +75,48 @@ void Print(const std::vector<Row>& rows, bool json) {
     }
 }
 
-/// The point S is built at: the solved optimum (rounded poses, rank d), the chordal start, or
-/// the last iterate of the robots' synchronous rounds (what `solve --distributed` certifies).
+/// The rounds (up to their max_rounds, converged or not), then the team's second-order finish
+/// from there (certify/pipeline/team_finish.h), every message counted; prints both to stderr.
+Eigen::MatrixXd FinishPoint(const slam::PoseGraph& graph, const slam::Partition& partition,
+                            const certify::TeamRoundsConfig& rounds,
+                            const certify::SolverConfig& solver,
+                            const certify::TeamFinishConfig& finish) {
+    auto start = Clock::now();
+    certify::InMemoryTeam team =
+        certify::RunTeamRoundsInMemory(slam::SplitGraph(graph, partition), solver, rounds);
+    std::fprintf(stderr, "rounds: %llu swept (%s), %.2f s\n",
+                 static_cast<unsigned long long>(team.rounds.front()),
+                 team.AllConverged() ? "converged" : "not converged", SecondsSince(start));
+    start = Clock::now();
+    const certify::InMemoryFinish f = certify::RunTeamFinishInMemory(&team, finish);
+    const certify::TeamFinishProgress& p = f.progress;
+    std::fprintf(stderr,
+                 "finish: %s, f %.12g, |grad| %.3e, %d trust-region steps (%d accepted), %d CG "
+                 "iterations, %llu exchanges, %llu reductions, %.2f MB of vectors, %zu domain "
+                 "edges, %.2f s\n",
+                 f.AllConverged() ? "converged" : "not converged", p.cost, p.grad_norm,
+                 p.iterations, p.accepted, p.tcg_iterations,
+                 static_cast<unsigned long long>(p.exchanges),
+                 static_cast<unsigned long long>(p.reductions), 8e-6 * f.entries, f.edges,
+                 SecondsSince(start));
+    // The central check of the same X: the verdict the robots' certificate round would reach.
+    const Eigen::MatrixXd X = team.X();
+    const certify::CertificateResult c =
+        certify::Certify(slam::ConnectionLaplacian(graph), X, graph.d);
+    std::fprintf(stderr, "certificate at the finish (central): %s, relative bound %.2e\n",
+                 certify::VerdictName(c.status), c.relative_suboptimality_bound);
+    return X;
+}
+
+/// The point S is built at: the solved optimum (rounded poses, rank d), the chordal start, the
+/// last iterate of the robots' synchronous rounds (what `solve --distributed` certifies), or
+/// the team's finish after them.
 Eigen::MatrixXd PointOf(const slam::PoseGraph& graph, const std::string& point,
                         const slam::Partition& partition, const certify::TeamRoundsConfig& rounds,
-                        const certify::SolverConfig& solver) {
+                        const certify::SolverConfig& solver,
+                        const certify::TeamFinishConfig& finish) {
     if (point == "chordal") return slam::LiftToRank(slam::ChordalInitialization(graph), 5);
+    if (point == "finish") return FinishPoint(graph, partition, rounds, solver, finish);
     if (point == "rounds") {
         const auto start = Clock::now();
         const certify::InMemoryTeam team =
@@ -137,6 +173,15 @@ Row LobpcgRow(Row r, const std::vector<certify::CertificateRows>& split,
     return r;
 }
 
+void AddFinishOptions(CLI::App* app, certify::TeamFinishConfig* finish) {
+    app->add_option("--finish-overlap", finish->overlap,
+                    "--point finish: Schwarz domains' overlap in edges (0: block Jacobi)")
+        ->check(CLI::Range(0, 8));
+    app->add_option("--finish-tol", finish->rel_grad_tol,
+                    "--point finish: the finish's relative gradient tolerance")
+        ->check(CLI::PositiveNumber);
+}
+
 int RunEigenBench(int argc, char** argv) {
     CLI::App app{"Distributed smallest eigenvalue: Lanczos beside block-Jacobi LOBPCG"};
     std::vector<std::string> files;
@@ -147,9 +192,12 @@ int RunEigenBench(int argc, char** argv) {
     app.add_option("files", files, "g2o files")->required();
     app.add_option("--robots", robots, "contiguous robot blocks")->check(CLI::PositiveNumber);
     app.add_option("--point", point,
-                   "optimum (solved, rounded), chordal (lifted to rank 5) or rounds (the robots' "
-                   "synchronous rounds' last iterate)")
-        ->check(CLI::IsMember({"optimum", "chordal", "rounds"}));
+                   "optimum (solved, rounded), chordal (lifted to rank 5), rounds (the robots' "
+                   "synchronous rounds' last iterate) or finish (the team's second-order finish "
+                   "after at most --max-rounds rounds)")
+        ->check(CLI::IsMember({"optimum", "chordal", "rounds", "finish"}));
+    certify::TeamFinishConfig finish;
+    AddFinishOptions(&app, &finish);
     certify::TeamRoundsConfig rounds;
     app.add_option("--rounds-tol", rounds.rel_grad_tol,
                    "--point rounds: the rounds' relative gradient tolerance");
@@ -184,7 +232,7 @@ int RunEigenBench(int argc, char** argv) {
         if (!read.ok()) throw std::runtime_error(read.error);
         const slam::PoseGraph graph = slam::LiftPlanar(read.graph);  // the robots solve in 3D
         const slam::Partition partition = slam::ContiguousPartition(graph.n, robots);
-        const Eigen::MatrixXd X = PointOf(graph, point, partition, rounds, solver);
+        const Eigen::MatrixXd X = PointOf(graph, point, partition, rounds, solver, finish);
         const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(graph);
         const Eigen::SparseMatrix<double> S =
             certify::CertificateMatrix(Q, certify::LambdaBlocks(Q, X, graph.d), graph.d);

@@ -5,6 +5,7 @@
 #include "certify/pipeline/overlap_sweep.h"
 
 #include <algorithm>
+#include <map>
 #include <optional>
 #include <utility>
 
@@ -77,6 +78,54 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
         team.rejected_proposals.push_back(schedule[i].RejectedProposals());
     }
     return team;
+}
+
+InMemoryFinish RunTeamFinishInMemory(InMemoryTeam* team, const TeamFinishConfig& config) {
+    std::vector<int> ids;
+    for (const auto& robot : team->robots) ids.push_back(robot.robot());
+    std::vector<TeamFinish> finish;
+    std::map<int, size_t> index;
+    for (const auto& robot : team->robots) {
+        index[robot.robot()] = finish.size();
+        finish.emplace_back(robot.robot(), ids, robot.FullBlock(0).blocks, EdgesTouching(robot),
+                            robot.NeighbourBlocks(), config);
+    }
+    InMemoryFinish out;
+    for (auto& f : finish) f.Start();
+    for (bool moved = true; moved;) {
+        moved = false;
+        for (size_t i = 0; i < finish.size(); ++i) {
+            const int from = ids[i];
+            for (const auto& e : finish[i].TakeEdges()) {
+                moved = true;
+                out.edges += e.edges.size();
+                finish[index.at(e.to)].OnEdges(from, e.poses, e.edges);
+            }
+            for (const auto& v : finish[i].TakeVectors()) {
+                moved = true;
+                out.entries += double(v.blocks.size());
+                finish[index.at(v.to)].OnVector(from, v.step, v.ids, v.blocks);
+            }
+            for (const auto& s : finish[i].TakeSums()) {
+                moved = true;
+                out.scalars += double(s.values.size());
+                for (auto& peer : finish) peer.OnSums(from, s.step, s.values);
+            }
+        }
+    }
+    for (size_t i = 0; i < finish.size(); ++i) {
+        out.status.push_back(finish[i].status());
+        team->robots[i].SetNeighbourPoses(finish[i].NeighbourPoses());
+        team->robots[i].SetOwnBlock(finish[i].Block());
+    }
+    if (!finish.empty()) out.progress = finish.front().Progress();
+    return out;
+}
+
+bool InMemoryFinish::AllConverged() const {
+    return !status.empty() && std::all_of(status.begin(), status.end(), [](TeamFinish::Status s) {
+        return s == TeamFinish::Status::kConverged;
+    });
 }
 
 bool InMemoryTeam::AllConverged() const {

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "certify/pipeline/solver_state.h"
+#include "certify/pipeline/team_finish.h"
 #include "certify/pipeline/team_rounds.h"
 #include "slam/core/graph_split.h"
 
@@ -30,5 +31,21 @@ struct InMemoryTeam {
 /// graph's robot receives it) through TeamRounds until every robot converged or gave up.
 InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, SolverConfig solver,
                                    const TeamRoundsConfig& rounds);
+
+/// Result of RunTeamFinishInMemory.
+struct InMemoryFinish {
+    std::vector<TeamFinish::Status> status;  ///< per robot
+    TeamFinishProgress progress;             ///< robot 0's counters (the team's but entries)
+    double entries = 0.0;                    ///< doubles of vectors all robots sent
+    double scalars = 0.0;                    ///< doubles of sums all robots sent
+    std::size_t edges = 0;                   ///< edges sent for the Schwarz domains
+
+    /// True when every robot converged.
+    bool AllConverged() const;
+};
+
+/// Runs every robot of `team` (at their current blocks) through TeamFinish, every message handed
+/// over at once, and leaves the finished blocks in `team->robots`.
+InMemoryFinish RunTeamFinishInMemory(InMemoryTeam* team, const TeamFinishConfig& config);
 
 }  // namespace certislam::certify

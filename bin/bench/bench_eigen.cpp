@@ -89,14 +89,14 @@ Eigen::MatrixXd FinishPoint(const slam::PoseGraph& graph, const slam::Partition&
                  team.AllConverged() ? "converged" : "not converged", SecondsSince(start));
     start = Clock::now();
     const certify::InMemoryFinish f = certify::RunTeamFinishInMemory(&team, finish);
-    const certify::TeamFinishProgress& p = f.progress;
+    const certify::TeamFinishProgress& p = f.progress.front();
     std::fprintf(stderr,
-                 "finish: %s, f %.12g, |grad| %.3e, %d trust-region steps (%d accepted), %d CG "
+                 "finish: %s%s, f %.12g, |grad| %.3e, %d trust-region steps (%d accepted), %d CG "
                  "iterations, %llu exchanges, %llu reductions, %.2f MB of vectors, %zu domain "
                  "edges, %.2f s\n",
-                 f.AllConverged() ? "converged" : "not converged", p.cost, p.grad_norm,
-                 p.iterations, p.accepted, p.tcg_iterations,
-                 static_cast<unsigned long long>(p.exchanges),
+                 f.AllConverged() ? "converged" : "not converged",
+                 p.at_floor ? " at the floor" : "", p.cost, p.grad_norm, p.iterations, p.accepted,
+                 p.tcg_iterations, static_cast<unsigned long long>(p.exchanges),
                  static_cast<unsigned long long>(p.reductions), 8e-6 * f.entries, f.edges,
                  SecondsSince(start));
     // The central check of the same X: the verdict the robots' certificate round would reach.

@@ -22,26 +22,7 @@ constexpr int kFlatSteps = 3;  // steps without halving the gradient that make a
 
 double Inner(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B) { return A.cwiseProduct(B).sum(); }
 
-void Require(bool ok, const char* field, double value, const char* rule) {
-    if (!ok) {
-        throw std::invalid_argument(std::string("TeamFinishConfig.") + field + " = " +
-                                    std::to_string(value) + ": must be " + rule);
-    }
-}
-
 }  // namespace
-
-void TeamFinishConfig::Validate() const {
-    Require(rel_grad_tol > 0.0, "rel_grad_tol", rel_grad_tol, "> 0");
-    Require(floor_rel_grad_tol >= rel_grad_tol, "floor_rel_grad_tol", floor_rel_grad_tol,
-            ">= rel_grad_tol");
-    Require(max_iterations >= 1, "max_iterations", max_iterations, ">= 1");
-    Require(max_tcg_iterations >= 1, "max_tcg_iterations", max_tcg_iterations, ">= 1");
-    Require(tcg_residual_floor >= 0.0 && tcg_residual_floor < 1.0, "tcg_residual_floor",
-            tcg_residual_floor, "in [0, 1)");
-    Require(overlap >= 0 && overlap <= 8, "overlap", overlap, "in [0, 8]");
-    Require(regulariser > 0.0, "regulariser", regulariser, "> 0");
-}
 
 struct TeamFinish::Impl {
     enum class Phase {
@@ -54,6 +35,7 @@ struct TeamFinish::Impl {
         kCurvSums,   // sum: <delta, H delta>
         kCandidate,  // exchange: the neighbours' entries of the candidate X+
         kCandSums,   // sum: f(X+), <grad, eta>, <eta, H eta>, ||grad(X+)||^2, f(X+) - f(X)
+        kFailed,     // sum: the one this robot spoiled (Fail), then kInconsistent
         kDone,
     };
 
@@ -91,7 +73,7 @@ struct TeamFinish::Impl {
     std::vector<FinishSums> out_sums;
 
     Impl(int robot_id, std::vector<int> robots, const Eigen::MatrixXd& X_own,
-         std::vector<slam::LoopClosure> own_edges, const PoseBlocks& known, TeamFinishConfig c)
+         std::vector<slam::LoopClosure> own_edges, TeamFinishConfig c)
         : robot(robot_id),
           team(std::move(robots)),
           config(c),
@@ -99,12 +81,13 @@ struct TeamFinish::Impl {
           own_ids(rows.OwnIds()),
           domain(robot_id, int(X_own.cols() / kBlock), rows.Edges(), c.overlap, c.regulariser) {
         config.Validate();
+        std::set<int> unique(team.begin(), team.end());
+        if (unique.size() != team.size() || !unique.count(robot))
+            throw std::invalid_argument("TeamFinish: the team must hold robot " +
+                                        std::to_string(robot) + " and every robot once");
         read_from = rows.ReadBy();
         for (const auto& [j, ids] : read_from) neighbours.insert(j);
         at.X = X_own;
-        for (size_t k = 0; k < known.ids.size(); ++k) {
-            at.nbr[known.ids[k]] = known.blocks.middleCols(kBlock * Eigen::Index(k), kBlock);
-        }
     }
 
     // --- messages -------------------------------------------------------------------------
@@ -143,15 +126,18 @@ struct TeamFinish::Impl {
         return it != vectors.end() && it->second.size() == neighbours.size() ? &it->second
                                                                              : nullptr;
     }
-    // The team's sums of the last reduction, added in team order (the same bits everywhere).
-    bool Reduced(std::vector<double>* out) {
+    // The team's sums of the last reduction, added in team order (the same bits everywhere);
+    // a share of another length or not finite (a robot's local failure: Fail) ends every
+    // robot's finish at this same reduction.
+    bool Reduced(size_t expected, std::vector<double>* out) {
         auto it = sums.find(reduction - 1);
         if (it == sums.end() || it->second.size() != team.size()) return false;
-        std::vector<double> total;
+        std::vector<double> total(expected, 0.0);
         for (int k : team) {
             const auto& v = it->second.at(k);
-            if (total.empty()) total.assign(v.size(), 0.0);
-            if (v.size() != total.size()) {  // a robot sent another step's sums: no decision
+            const bool finite =
+                std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+            if (v.size() != expected || !finite) {
                 Finish(Status::kInconsistent);
                 return false;
             }
@@ -160,6 +146,18 @@ struct TeamFinish::Impl {
         sums.erase(it);
         *out = std::move(total);
         return true;
+    }
+    // A local failure (a neighbour's entries missing, a factor failed): this robot sends the
+    // exchange its neighbours still wait for before the next sum (an empty scatter) and a
+    // non-finite share of that sum, so that every robot ends there (Reduced).
+    void Fail() {
+        if (phase == Phase::kGather) {
+            std::map<int, Eigen::MatrixXd> blocks;
+            for (int j : neighbours) blocks[j] = Eigen::MatrixXd(at.X.rows(), 0);
+            SendEach(blocks, {});
+        }
+        SendSums({std::numeric_limits<double>::quiet_NaN()});
+        phase = Phase::kFailed;
     }
 
     void Finish(Status s) {
@@ -198,15 +196,15 @@ bool TeamFinish::Impl::Step() {
             StoreEntries(*in, &at.nbr);
             vectors.erase(exchange - 1);
             if (!rows.Build(&at) || (config.overlap > 0 && !domain.Factorize())) {
-                Finish(Status::kInconsistent);
-                return false;
+                Fail();
+                return true;
             }
             SendSums({at.problem.cost, at.grad.squaredNorm()});
             phase = Phase::kStartSums;
             return true;
         }
         case Phase::kStartSums:
-            if (!Reduced(&s)) return false;
+            if (!Reduced(2, &s)) return false;
             f = s[0];
             g = std::sqrt(std::max(s[1], 0.0));
             BeginIteration();
@@ -216,7 +214,7 @@ bool TeamFinish::Impl::Step() {
         case Phase::kScatter:
             return ApplyScatter();
         case Phase::kPrecSums:
-            if (!Reduced(&s)) return false;
+            if (!Reduced(2, &s)) return false;
             OnPrecSums(s);
             return true;
         case Phase::kProduct: {
@@ -227,8 +225,8 @@ bool TeamFinish::Impl::Step() {
             vectors.erase(exchange - 1);
             Eigen::MatrixXd d_nbr;
             if (!FinishRows::Gather(at, by_id, &d_nbr)) {
-                Finish(Status::kInconsistent);
-                return false;
+                Fail();
+                return true;
             }
             Hd = FinishRows::Hessian(at, delta, d_nbr);
             SendSums({Inner(delta, Hd)});
@@ -236,15 +234,18 @@ bool TeamFinish::Impl::Step() {
             return true;
         }
         case Phase::kCurvSums:
-            if (!Reduced(&s)) return false;
+            if (!Reduced(1, &s)) return false;
             OnCurvSums(s[0]);
             return true;
         case Phase::kCandidate:
             return OnCandidate();
         case Phase::kCandSums:
-            if (!Reduced(&s)) return false;
+            if (!Reduced(6, &s)) return false;
             OnCandSums(s);
             return true;
+        case Phase::kFailed:
+            Reduced(1, &s);  // never succeeds: this robot's own share is not finite
+            return false;
         case Phase::kDone:
             return false;
     }
@@ -301,8 +302,8 @@ bool TeamFinish::Impl::Scatter() {
     std::map<int, Eigen::MatrixXd> blocks;
     for (int j : neighbours) ids[j];
     if (!domain.Solve(r, by_id, &z, &ids, &blocks)) {
-        Finish(Status::kInconsistent);
-        return false;
+        Fail();
+        return true;
     }
     SendEach(blocks, ids);
     phase = Phase::kScatter;
@@ -313,8 +314,8 @@ bool TeamFinish::Impl::ApplyScatter() {
     auto* in = Received();
     if (in == nullptr) return false;
     if (!domain.AddReturned(*in, &z)) {
-        Finish(Status::kInconsistent);
-        return false;
+        Fail();
+        return true;
     }
     vectors.erase(exchange - 1);
     z = slam::ProjectToTangent(at.X, z, kD);
@@ -378,12 +379,11 @@ void TeamFinish::Impl::EndTcg() {
 bool TeamFinish::Impl::OnCandidate() {
     auto* in = Received();
     if (in == nullptr) return false;
-    cand.nbr = at.nbr;
     StoreEntries(*in, &cand.nbr);
     vectors.erase(exchange - 1);
     if (!rows.Build(&cand)) {
-        Finish(Status::kInconsistent);
-        return false;
+        Fail();
+        return true;
     }
     const auto [change, change_noise] = rows.CostChange(at, cand);
     SendSums({cand.problem.cost, Inner(at.grad, eta), Inner(eta, Heta), cand.grad.squaredNorm(),
@@ -421,10 +421,8 @@ void TeamFinish::Impl::OnCandSums(const std::vector<double>& s) {
 }
 
 TeamFinish::TeamFinish(int robot, std::vector<int> team, const Eigen::MatrixXd& X_own,
-                       std::vector<slam::LoopClosure> edges, const PoseBlocks& neighbours,
-                       TeamFinishConfig config)
-    : impl_(std::make_unique<Impl>(robot, std::move(team), X_own, std::move(edges), neighbours,
-                                   config)) {}
+                       std::vector<slam::LoopClosure> edges, TeamFinishConfig config)
+    : impl_(std::make_unique<Impl>(robot, std::move(team), X_own, std::move(edges), config)) {}
 TeamFinish::~TeamFinish() = default;
 TeamFinish::TeamFinish(TeamFinish&&) noexcept = default;
 TeamFinish& TeamFinish::operator=(TeamFinish&&) noexcept = default;
@@ -435,12 +433,11 @@ void TeamFinish::Start() {
         for (int j : m.neighbours) {
             m.out_edges.push_back({j, m.domain.OwnPosesIn(j), m.domain.EdgesFor(j)});
         }
-    } else {
-        m.domain.Factorize();  // the own block alone
     }
     m.SendRead(m.at.X, true);
     m.phase = Impl::Phase::kStartX;
     m.started = true;
+    if (m.config.overlap == 0 && !m.domain.Factorize()) return m.Fail();  // the own block alone
     m.Advance();
 }
 
@@ -452,20 +449,36 @@ void TeamFinish::OnEdges(int robot, const std::vector<slam::PoseId>& poses,
     m.Advance();
 }
 
+// A neighbour is at most two exchanges ahead (gather and scatter before a sum) and one sum ahead:
+// anything further, older, repeated, of another rank, not finite, or naming a pose of a third
+// robot is dropped (counted), so a peer cannot grow the mailboxes or overwrite others' poses.
 void TeamFinish::OnVector(int robot, std::uint64_t step, const std::vector<slam::PoseId>& ids,
                           const Eigen::MatrixXd& blocks) {
     Impl& m = *impl_;
-    if (!m.neighbours.count(robot) || step + 1 < m.exchange ||
-        blocks.cols() != kBlock * Eigen::Index(ids.size()))
+    const bool in_window = step + 1 >= m.exchange && step <= m.exchange + 2;
+    const bool shaped = blocks.cols() == kBlock * Eigen::Index(ids.size()) &&
+                        (blocks.cols() == 0 || blocks.rows() == m.at.X.rows()) &&
+                        blocks.allFinite();
+    const bool owned = std::all_of(ids.begin(), ids.end(), [&](const slam::PoseId& id) {
+        return id.robot == robot || id.robot == m.robot;
+    });
+    if (!m.neighbours.count(robot) || !in_window || !shaped || !owned ||
+        m.vectors[step].count(robot) > 0) {
+        ++m.progress.dropped;
         return;
+    }
     m.vectors[step][robot] = {ids, blocks};
     m.Advance();
 }
 
 void TeamFinish::OnSums(int robot, std::uint64_t step, const std::vector<double>& values) {
     Impl& m = *impl_;
-    if (std::find(m.team.begin(), m.team.end(), robot) == m.team.end() || step + 1 < m.reduction)
+    const bool member = std::find(m.team.begin(), m.team.end(), robot) != m.team.end();
+    const bool in_window = step + 1 >= m.reduction && step <= m.reduction + 1;
+    if (!member || !in_window || m.sums[step].count(robot) > 0) {
+        ++m.progress.dropped;
         return;
+    }
     m.sums[step][robot] = values;
     m.Advance();
 }
@@ -478,14 +491,7 @@ std::vector<FinishSums> TeamFinish::TakeSums() { return std::exchange(impl_->out
 TeamFinish::Status TeamFinish::status() const { return impl_->status; }
 const Eigen::MatrixXd& TeamFinish::Block() const { return impl_->at.X; }
 PoseBlocks TeamFinish::NeighbourPoses() const {
-    const auto& nbr = impl_->at.nbr;
-    PoseBlocks out;
-    out.blocks = Eigen::MatrixXd(impl_->at.X.rows(), kBlock * Eigen::Index(nbr.size()));
-    for (const auto& [id, block] : nbr) {
-        out.blocks.middleCols(kBlock * Eigen::Index(out.ids.size()), kBlock) = block;
-        out.ids.push_back(id);
-    }
-    return out;
+    return BlocksOf(impl_->at.nbr, impl_->at.X.rows());
 }
 const TeamFinishProgress& TeamFinish::Progress() const { return impl_->progress; }
 const std::set<int>& TeamFinish::Neighbours() const { return impl_->neighbours; }

@@ -73,6 +73,7 @@ struct TeamFinishProgress {
     double cost = 0.0;             ///< f at the current iterate (team)
     double grad_norm = 0.0;        ///< ||rgrad f|| there (team)
     bool at_floor = false;         ///< converged at floor_rel_grad_tol, not rel_grad_tol
+    std::uint64_t dropped = 0;     ///< messages dropped: out of step, repeated, malformed
 };
 
 /// One robot's finish: construct, Start(), then hand it every neighbour's FinishEdges,
@@ -84,15 +85,17 @@ class TeamFinish {
         kRunning,
         kConverged,     ///< ||rgrad f|| <= rel_grad_tol * max(1, f)
         kNotConverged,  ///< max_iterations, or the radius collapsed
-        kInconsistent,  ///< a neighbour's entries did not cover the poses this robot reads
+        /// A robot's entries did not cover the poses another reads, a factor failed, or a sum
+        /// was malformed: every robot ends so at the same sum (none waits for the others)
+        kInconsistent,
     };
 
-    /// Robot `robot` of `team` (ids, every robot's sums awaited), its block X_own (r x 4n, own
-    /// index order), `edges`: every edge touching an own pose, each once; `neighbours`: the poses
-    /// of other robots those edges touch (at least those; the team's current iterate).
+    /// Robot `robot` of `team` (ids, each once, `robot` among them; every robot's sums are
+    /// awaited), its block X_own (r x 4n, own index order) and `edges`: every edge touching an
+    /// own pose, each once. The neighbours' poses come from the first exchange (every robot's X).
+    /// Throws std::invalid_argument on a bad team or config.
     TeamFinish(int robot, std::vector<int> team, const Eigen::MatrixXd& X_own,
-               std::vector<slam::LoopClosure> edges, const PoseBlocks& neighbours,
-               TeamFinishConfig config);
+               std::vector<slam::LoopClosure> edges, TeamFinishConfig config);
     ~TeamFinish();
     TeamFinish(TeamFinish&&) noexcept;
     TeamFinish& operator=(TeamFinish&&) noexcept;

@@ -67,8 +67,9 @@ void FinishDomain::Add(int j, const std::vector<slam::PoseId>& poses,
     for (const auto& p : poses) {
         if (p.robot == j) added_.insert(p);  // a neighbour speaks for its own poses only
     }
-    for (const auto& e : edges) {
-        if (known_.insert({e.a, e.b}).second) edges_.push_back(e);
+    for (const auto& e : edges) {  // only edges at the sender's poses, each pair once
+        if ((e.a.robot == j || e.b.robot == j) && known_.insert({e.a, e.b}).second)
+            edges_.push_back(e);
     }
 }
 

@@ -1,10 +1,15 @@
-// FinishRows: the own rows of S and of Q, and the products the finish takes with them.
+// FinishRows: the own rows of S and of Q, and the products the finish takes with them; the
+// finish's settings (TeamFinishConfig::Validate).
 #include "certify/pipeline/team_finish_rows.h"
+
+#include "certify/pipeline/team_finish.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <set>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "slam/backend/connection_laplacian.h"
@@ -17,6 +22,13 @@ namespace {
 constexpr int kBlock = 4;  // d + 1 columns per pose (d = 3)
 constexpr int kD = 3;
 
+void Require(bool ok, const char* field, double value, const char* rule) {
+    if (!ok) {
+        throw std::invalid_argument(std::string("TeamFinishConfig.") + field + " = " +
+                                    std::to_string(value) + ": must be " + rule);
+    }
+}
+
 // Own columns of V S from the own block of V and the neighbours' entries.
 Eigen::MatrixXd TimesS(const FinishPoint& p, const Eigen::MatrixXd& V_own,
                        const Eigen::MatrixXd& V_nbr) {
@@ -27,11 +39,33 @@ Eigen::MatrixXd TimesS(const FinishPoint& p, const Eigen::MatrixXd& V_own,
 
 }  // namespace
 
+void TeamFinishConfig::Validate() const {
+    Require(rel_grad_tol > 0.0, "rel_grad_tol", rel_grad_tol, "> 0");
+    Require(floor_rel_grad_tol >= rel_grad_tol, "floor_rel_grad_tol", floor_rel_grad_tol,
+            ">= rel_grad_tol");
+    Require(max_iterations >= 1, "max_iterations", max_iterations, ">= 1");
+    Require(max_tcg_iterations >= 1, "max_tcg_iterations", max_tcg_iterations, ">= 1");
+    Require(tcg_residual_floor >= 0.0 && tcg_residual_floor < 1.0, "tcg_residual_floor",
+            tcg_residual_floor, "in [0, 1)");
+    Require(overlap >= 0 && overlap <= 8, "overlap", overlap, "in [0, 8]");
+    Require(regulariser > 0.0, "regulariser", regulariser, "> 0");
+}
+
 Eigen::MatrixXd OwnColumns(const Eigen::MatrixXd& own, const std::vector<slam::PoseId>& ids) {
     Eigen::MatrixXd out(own.rows(), kBlock * Eigen::Index(ids.size()));
     for (size_t k = 0; k < ids.size(); ++k) {
         out.middleCols(kBlock * Eigen::Index(k), kBlock) =
             own.middleCols(kBlock * Eigen::Index(ids[k].index), kBlock);
+    }
+    return out;
+}
+
+PoseBlocks BlocksOf(const std::map<slam::PoseId, Eigen::MatrixXd>& by_id, Eigen::Index rank) {
+    PoseBlocks out;
+    out.blocks = Eigen::MatrixXd(rank, kBlock * Eigen::Index(by_id.size()));
+    for (const auto& [id, block] : by_id) {
+        out.blocks.middleCols(kBlock * Eigen::Index(out.ids.size()), kBlock) = block;
+        out.ids.push_back(id);
     }
     return out;
 }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "certify/distributed/distributed_certificate.h"
+#include "certify/pipeline/solver_state.h"
 #include "slam/core/loop_closure.h"
 
 namespace certislam::certify {
@@ -27,6 +28,9 @@ using FinishEntries = std::map<int, std::pair<std::vector<slam::PoseId>, Eigen::
 
 /// The columns of `own` (r x 4n, own index order) at the own poses `ids`, one block each.
 Eigen::MatrixXd OwnColumns(const Eigen::MatrixXd& own, const std::vector<slam::PoseId>& ids);
+
+/// The blocks of `by_id` (r x 4 each) as one PoseBlocks, in id order.
+PoseBlocks BlocksOf(const std::map<slam::PoseId, Eigen::MatrixXd>& by_id, Eigen::Index rank);
 
 /// Every block of `in` by pose id into `*by_id` (newer replace older).
 void StoreEntries(const FinishEntries& in, std::map<slam::PoseId, Eigen::MatrixXd>* by_id);

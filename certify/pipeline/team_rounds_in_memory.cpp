@@ -88,7 +88,7 @@ InMemoryFinish RunTeamFinishInMemory(InMemoryTeam* team, const TeamFinishConfig&
     for (const auto& robot : team->robots) {
         index[robot.robot()] = finish.size();
         finish.emplace_back(robot.robot(), ids, robot.FullBlock(0).blocks, EdgesTouching(robot),
-                            robot.NeighbourBlocks(), config);
+                            config);
     }
     InMemoryFinish out;
     for (auto& f : finish) f.Start();
@@ -118,7 +118,7 @@ InMemoryFinish RunTeamFinishInMemory(InMemoryTeam* team, const TeamFinishConfig&
         team->robots[i].SetNeighbourPoses(finish[i].NeighbourPoses());
         team->robots[i].SetOwnBlock(finish[i].Block());
     }
-    if (!finish.empty()) out.progress = finish.front().Progress();
+    for (const auto& f : finish) out.progress.push_back(f.Progress());
     return out;
 }
 

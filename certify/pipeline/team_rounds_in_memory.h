@@ -34,11 +34,11 @@ InMemoryTeam RunTeamRoundsInMemory(const std::vector<slam::RobotGraph>& graphs, 
 
 /// Result of RunTeamFinishInMemory.
 struct InMemoryFinish {
-    std::vector<TeamFinish::Status> status;  ///< per robot
-    TeamFinishProgress progress;             ///< robot 0's counters (the team's but entries)
-    double entries = 0.0;                    ///< doubles of vectors all robots sent
-    double scalars = 0.0;                    ///< doubles of sums all robots sent
-    std::size_t edges = 0;                   ///< edges sent for the Schwarz domains
+    std::vector<TeamFinish::Status> status;    ///< per robot
+    std::vector<TeamFinishProgress> progress;  ///< per robot (the same but entries_sent)
+    double entries = 0.0;                      ///< doubles of vectors all robots sent
+    double scalars = 0.0;                      ///< doubles of sums all robots sent
+    std::size_t edges = 0;                     ///< edges sent for the Schwarz domains
 
     /// True when every robot converged.
     bool AllConverged() const;

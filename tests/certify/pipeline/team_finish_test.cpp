@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -47,8 +49,22 @@ double GradientNorm(InMemoryTeam* team) {
     return std::sqrt(sq);
 }
 
+// Every robot's counters but the entries it sent, and its view of f, bit for bit.
+void ExpectSameDecisions(const InMemoryFinish& f) {
+    for (const auto& p : f.progress) {
+        EXPECT_EQ(p.iterations, f.progress.front().iterations);
+        EXPECT_EQ(p.accepted, f.progress.front().accepted);
+        EXPECT_EQ(p.tcg_iterations, f.progress.front().tcg_iterations);
+        EXPECT_EQ(p.exchanges, f.progress.front().exchanges);
+        EXPECT_EQ(p.reductions, f.progress.front().reductions);
+        EXPECT_EQ(p.cost, f.progress.front().cost);
+        EXPECT_EQ(p.grad_norm, f.progress.front().grad_norm);
+        EXPECT_EQ(p.dropped, 0u);
+    }
+}
+
 TEST(TeamFinish, FromAFewRoundsEveryRobotReachesTheOptimumWithTheSameDecisions) {
-    for (int overlap : {0, 2}) {
+    for (int overlap : {0, 1, 2}) {
         InMemoryTeam team = AfterRounds("smallGrid3D.g2o", 4, 3);
         ASSERT_FALSE(team.AllConverged());  // the finish has work to do
         const double before = GradientNorm(&team);
@@ -56,18 +72,24 @@ TEST(TeamFinish, FromAFewRoundsEveryRobotReachesTheOptimumWithTheSameDecisions) 
         config.overlap = overlap;
         const InMemoryFinish f = RunTeamFinishInMemory(&team, config);
         EXPECT_TRUE(f.AllConverged()) << "overlap " << overlap;
+        ExpectSameDecisions(f);
+        const TeamFinishProgress& p = f.progress.front();
         // f = tr(X Q X^T) as the certificate has it; the robots' SolverStates count an edge's
         // rotation term exactly, not as Q does for the file's unnormalised quaternions (1e-7 f).
-        EXPECT_NEAR(f.progress.cost, kSmallGridOptimum, 1e-8 * kSmallGridOptimum);
+        EXPECT_NEAR(p.cost, kSmallGridOptimum, 1e-8 * kSmallGridOptimum);
         const double cost = Cost(&team);
         EXPECT_NEAR(cost, kSmallGridOptimum, 1e-6 * kSmallGridOptimum) << "overlap " << overlap;
         // Every robot's block, evaluated by its own SolverState against the neighbours' final
         // poses, is critical.
         EXPECT_LE(GradientNorm(&team), 1e-9 * cost);
         EXPECT_LT(GradientNorm(&team), 1e-6 * before);
-        EXPECT_GT(f.progress.tcg_iterations, 0);
-        // A product, a preconditioner (two exchanges with overlap) and a candidate per step.
-        EXPECT_GE(f.progress.exchanges, std::uint64_t(f.progress.tcg_iterations));
+        // Per trust-region step: one product per CG iteration, a preconditioner before the
+        // first and after every CG iteration but a last one on the boundary (two exchanges
+        // with overlap, none without), the candidate; and the starting X.
+        const std::uint64_t per_prec = overlap > 0 ? 2 : 0;
+        EXPECT_GE(p.exchanges, 1 + std::uint64_t(p.tcg_iterations) + std::uint64_t(p.iterations));
+        EXPECT_LE(p.exchanges, 1 + std::uint64_t(p.tcg_iterations) * (1 + per_prec) +
+                                   std::uint64_t(p.iterations) * (1 + per_prec));
         EXPECT_EQ(f.edges > 0, overlap > 0);
     }
 }
@@ -79,40 +101,112 @@ TEST(TeamFinish, IntelIsFinishedWhereTheRoundsCrawl) {
     const double before = Cost(&team);
     const InMemoryFinish f = RunTeamFinishInMemory(&team, TeamFinishConfig{});
     ASSERT_TRUE(f.AllConverged());
-    EXPECT_FALSE(f.progress.at_floor);
+    ExpectSameDecisions(f);
+    EXPECT_FALSE(f.progress.front().at_floor);
     EXPECT_LT(Cost(&team), before);
-    EXPECT_NEAR(f.progress.cost, kIntelOptimum, 1e-6 * kIntelOptimum);
-    EXPECT_LE(f.progress.grad_norm, 1e-10 * kIntelOptimum);
+    EXPECT_NEAR(f.progress.front().cost, kIntelOptimum, 1e-6 * kIntelOptimum);
+    EXPECT_LE(f.progress.front().grad_norm, 1e-10 * kIntelOptimum);
     EXPECT_LE(GradientNorm(&team), 1e-9 * kIntelOptimum);
 }
 
-// Two robots of smallGrid3D, driven by hand: robot 1's first sums arrive with a wrong length.
-TEST(TeamFinish, MalformedSumsEndTheFinishAsInconsistentInsteadOfWaiting) {
-    InMemoryTeam team = AfterRounds("smallGrid3D.g2o", 2, 2);
+// Two robots of smallGrid3D driven by hand, every message handed over at once.
+struct Pair {
     std::vector<TeamFinish> robots;
-    for (const auto& me : team.robots) {
-        robots.emplace_back(me.robot(), std::vector<int>{0, 1}, me.FullBlock(0).blocks,
-                            EdgesTouching(me), me.NeighbourBlocks(), TeamFinishConfig{});
+
+    explicit Pair(std::vector<std::vector<slam::LoopClosure>> edges = {}) {
+        const InMemoryTeam team = AfterRounds("smallGrid3D.g2o", 2, 2);
+        for (size_t i = 0; i < team.robots.size(); ++i) {
+            const auto& me = team.robots[i];
+            auto own = EdgesTouching(me);
+            if (i < edges.size()) own.insert(own.end(), edges[i].begin(), edges[i].end());
+            robots.emplace_back(me.robot(), std::vector<int>{0, 1}, me.FullBlock(0).blocks, own,
+                                TeamFinishConfig{});
+        }
     }
-    robots[0].Start();
-    robots[1].Start();
+    // Delivers until nothing moves; returns the messages moved.
+    int Deliver() {
+        int moved = 0;
+        for (bool more = true; more;) {
+            more = false;
+            for (int i = 0; i < 2; ++i) {
+                for (const auto& e : robots[i].TakeEdges()) {
+                    robots[e.to].OnEdges(i, e.poses, e.edges);
+                    more = true;
+                }
+                for (const auto& v : robots[i].TakeVectors()) {
+                    robots[v.to].OnVector(i, v.step, v.ids, v.blocks);
+                    more = true;
+                }
+                for (const auto& s : robots[i].TakeSums()) {
+                    for (auto& r : robots) r.OnSums(i, s.step, s.values);
+                    more = true;
+                }
+                moved += more ? 1 : 0;
+            }
+        }
+        return moved;
+    }
+};
+
+TEST(TeamFinish, MalformedSumsEndEveryRobotAsInconsistentInsteadOfWaiting) {
+    Pair pair;
+    pair.robots[0].Start();
+    pair.robots[1].Start();
     for (int i = 0; i < 2; ++i) {
-        for (const auto& e : robots[i].TakeEdges()) robots[e.to].OnEdges(i, e.poses, e.edges);
+        for (const auto& e : pair.robots[i].TakeEdges())
+            pair.robots[e.to].OnEdges(i, e.poses, e.edges);
+        for (const auto& v : pair.robots[i].TakeVectors())
+            pair.robots[v.to].OnVector(i, v.step, v.ids, v.blocks);
     }
-    for (int i = 0; i < 2; ++i) {
-        for (const auto& v : robots[i].TakeVectors())
-            robots[v.to].OnVector(i, v.step, v.ids, v.blocks);
+    const auto first = pair.robots[0].TakeSums();
+    ASSERT_EQ(first.size(), 1u);
+    pair.robots[1].TakeSums();  // robot 1's true share is replaced by a short one below
+    // A robot outside the team, a sum far ahead: dropped and counted; nothing decided.
+    pair.robots[0].OnSums(7, first[0].step, first[0].values);
+    pair.robots[0].OnSums(1, first[0].step + 5, first[0].values);
+    EXPECT_EQ(pair.robots[0].Progress().dropped, 2u);
+    for (auto& r : pair.robots) r.OnSums(0, first[0].step, first[0].values);
+    EXPECT_FALSE(pair.robots[0].Done());
+    for (auto& r : pair.robots) r.OnSums(1, first[0].step, {1.0});
+    for (auto& r : pair.robots) EXPECT_EQ(r.status(), TeamFinish::Status::kInconsistent);
+}
+
+TEST(TeamFinish, EntriesOfAnotherRankOrNotFiniteOrOfAThirdRobotAreDropped) {
+    Pair pair;
+    pair.robots[0].Start();
+    const auto sent = pair.robots[0].TakeVectors();
+    ASSERT_EQ(sent.size(), 1u);
+    const FinishVector& v = sent[0];
+    Eigen::MatrixXd nan = v.blocks;
+    nan(0, 0) = std::numeric_limits<double>::quiet_NaN();
+    std::vector<slam::PoseId> third = v.ids;
+    third[0].robot = 5;
+    pair.robots[1].OnVector(0, v.step, v.ids, nan);
+    pair.robots[1].OnVector(0, v.step, v.ids, v.blocks.topRows(v.blocks.rows() - 1));
+    pair.robots[1].OnVector(0, v.step, third, v.blocks);
+    pair.robots[1].OnVector(0, v.step + 9, v.ids, v.blocks);
+    EXPECT_EQ(pair.robots[1].Progress().dropped, 4u);
+    // The true entries still make the pair converge.
+    pair.robots[1].OnVector(0, v.step, v.ids, v.blocks);
+    pair.robots[1].Start();
+    pair.Deliver();
+    EXPECT_EQ(pair.robots[0].status(), TeamFinish::Status::kConverged);
+    EXPECT_EQ(pair.robots[1].status(), TeamFinish::Status::kConverged);
+}
+
+// Robot 1 holds an edge to a pose of robot 0 that robot 0 does not know: robot 1 cannot build
+// its rows, and both robots end together instead of robot 0 waiting for ever.
+TEST(TeamFinish, ALocalFailureEndsEveryRobotAtTheSameSum) {
+    slam::LoopClosure extra;
+    extra.a = {1, 0};
+    extra.b = {0, 7};
+    Pair pair({{}, {extra}});
+    for (auto& r : pair.robots) r.Start();
+    EXPECT_GT(pair.Deliver(), 0);
+    for (auto& r : pair.robots) {
+        EXPECT_EQ(r.status(), TeamFinish::Status::kInconsistent);
+        EXPECT_EQ(r.Progress().reductions, 1u);
     }
-    const auto own = robots[0].TakeSums();
-    ASSERT_EQ(own.size(), 1u);
-    robots[0].OnSums(0, own[0].step, own[0].values);
-    EXPECT_FALSE(robots[0].Done());
-    // From a robot outside the team and entries from a non-neighbour: dropped, nothing decided.
-    robots[0].OnSums(7, own[0].step, own[0].values);
-    robots[0].OnVector(7, 0, {}, Eigen::MatrixXd());
-    EXPECT_FALSE(robots[0].Done());
-    robots[0].OnSums(1, own[0].step, {1.0});
-    EXPECT_EQ(robots[0].status(), TeamFinish::Status::kInconsistent);
 }
 
 TEST(TeamFinish, ConfigurationErrorsNameTheField) {

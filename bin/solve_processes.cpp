@@ -361,9 +361,16 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
                 WIFSIGNALED(c.status)
                     ? std::string("was killed (") + ::strsignal(WTERMSIG(c.status)) + ")"
                     : "exited " + std::to_string(code);
-            std::fprintf(stderr, "certislam solve: error: %s: robot %d (%s) %s: %s\n",
+            // A report that is not JSON is quoted: something else wrote to the robot's stdout.
+            const std::string out = Slurp(c.out);
+            const std::string report =
+                j.is_discarded() && !Failed(c.status)
+                    ? " (its report is not JSON: \"" +
+                          out.substr(0, std::min<size_t>(out.find('\n'), 200)) + "\")"
+                    : "";
+            std::fprintf(stderr, "certislam solve: error: %s: robot %d (%s) %s: %s%s\n",
                          o.file.c_str(), c.robot, o.transport.c_str(), how.c_str(),
-                         LastLine(Slurp(c.log)).c_str());
+                         LastLine(Slurp(c.log)).c_str(), report.c_str());
             fs::remove_all(dir);
             return code == kExitBadInput ? kExitBadInput : kExitNotCertified;
         }

@@ -185,6 +185,9 @@ bool LobpcgParticipant::Setup(const std::vector<double>& sums) {
     // Block Jacobi: (S_kk + tau I)^{-1}, the smallest tau of the sequence that factorises.
     factor_ = std::make_unique<Factor>();
     factor_->llt.setMode(Eigen::CholmodSimplicialLLt);  // LL^T fails on indefinite blocks
+    // A failed shift is expected here: CHOLMOD's warning would go to stdout, where a robot
+    // process writes its JSON report (`solve --transport tcp` could not read it).
+    factor_->llt.cholmod().print = 0;
     double tau = settings_.lobpcg.shift_relative * progress_.scale;
     for (int attempt = 0; attempt < kMaxShiftAttempts; ++attempt) {
         Eigen::SparseMatrix<double> A = problem_.rows.own;

@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <memory>
 #include <random>
@@ -15,11 +17,13 @@
 
 #include "certify/certificate.h"
 #include "certify/distributed/distributed_lanczos.h"
+#include "certify/distributed/lobpcg_participant.h"
 #include "certify/distributed/round_participant.h"
 #include "certify/min_eigenpair.h"
 #include "certify/pose_graph_solver.h"
 #include "slam/backend/chordal.h"
 #include "slam/backend/connection_laplacian.h"
+#include "slam/backend/stiefel.h"
 #include "slam/io/g2o_io.h"
 #include "tests/certify/test_graphs.h"
 #include "tests/data_paths.h"
@@ -208,6 +212,62 @@ TEST(Participant, ShuffledDeliveryReachesTheInOrderVerdict) {
         EXPECT_EQ(r->Verdict().status, DistributedVerdict::Status::kConverged);
         EXPECT_EQ(r->Verdict().lambda_min, in_order.lambda_min);
     }
+}
+
+}  // namespace
+}  // namespace certislam::certify
+
+namespace certislam::certify {
+namespace {
+
+// At a random point the own blocks of S are indefinite: the block-Jacobi factor's first shifts
+// fail. CHOLMOD must not say so on stdout, where a robot process writes its report.
+TEST(Participant, AFailedShiftOfTheBlockJacobiFactorPrintsNothing) {
+    const slam::PoseGraph graph = Read("smallGrid3D.g2o");
+    std::srand(3);
+    const Eigen::MatrixXd X =
+        slam::ProjectToManifold(Eigen::MatrixXd::Random(kRank, 4 * graph.n), graph.d);
+    const Problem p = Split(graph, X, 3);
+    const std::vector<LocalCertificateProblem> problems = LocalProblemsOf(p.rows);
+    LanczosSettings settings;
+    settings.method = LanczosSettings::Method::kLobpcg;
+    std::vector<std::unique_ptr<RoundParticipant>> robots(problems.size());
+    std::vector<std::function<void()>> mail;
+    const std::vector<int> team{0, 1, 2};
+    for (int k = 0; k < 3; ++k) {
+        robots[k] = MakeRoundParticipant(
+            problems[k], team, 1, settings,
+            [&, k](int step, const std::vector<slam::PoseId>& ids, const Eigen::VectorXd& v) {
+                for (int to = 0; to < 3; ++to) {
+                    if (problems[to].neighbor_robots.count(k))
+                        mail.push_back(
+                            [&, to, k, step, ids, v] { robots[to]->OnVector(k, step, ids, v); });
+                }
+            },
+            [&, k](int step, int stage, const std::vector<double>& sums) {
+                for (int to = 0; to < 3; ++to) {
+                    if (to != k)
+                        mail.push_back([&, to, k, step, stage, sums] {
+                            robots[to]->OnReduction(k, step, stage, sums);
+                        });
+                }
+            });
+    }
+    ::testing::internal::CaptureStdout();
+    for (auto& r : robots) r->Begin();
+    for (size_t i = 0; i < mail.size(); ++i) mail[i]();
+    std::fflush(stdout);
+    const std::string printed = ::testing::internal::GetCapturedStdout();
+    bool shifted = false;
+    for (const auto& r : robots) {
+        ASSERT_TRUE(r->Done());
+        const auto* lobpcg = dynamic_cast<const LobpcgParticipant*>(r.get());
+        ASSERT_NE(lobpcg, nullptr);
+        const LobpcgProgress& progress = lobpcg->Progress();
+        shifted = shifted || progress.shift > settings.lobpcg.shift_relative * progress.scale;
+    }
+    ASSERT_TRUE(shifted) << "no factorization failed: the test does not test anything";
+    EXPECT_EQ(printed, "");
 }
 
 }  // namespace

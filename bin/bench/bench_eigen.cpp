@@ -100,7 +100,7 @@ Eigen::MatrixXd FinishPoint(const slam::PoseGraph& graph, const slam::Partition&
                  static_cast<unsigned long long>(p.reductions), 8e-6 * f.entries, f.edges,
                  SecondsSince(start));
     // The central check of the same X: the verdict the robots' certificate round would reach.
-    const Eigen::MatrixXd X = team.X();
+    Eigen::MatrixXd X = team.X();
     const certify::CertificateResult c =
         certify::Certify(slam::ConnectionLaplacian(graph), X, graph.d);
     std::fprintf(stderr, "certificate at the finish (central): %s, relative bound %.2e\n",

@@ -5,6 +5,7 @@
 #include "certify/pipeline/overlap_sweep.h"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <optional>
 #include <utility>
@@ -130,6 +131,18 @@ bool InMemoryFinish::AllConverged() const {
 
 bool InMemoryTeam::AllConverged() const {
     return std::all_of(converged.begin(), converged.end(), [](bool c) { return c; });
+}
+
+double InMemoryTeam::Cost() {
+    double f = 0.0;
+    for (auto& me : robots) f += me.Evaluate().cost;
+    return f;
+}
+
+double InMemoryTeam::GradientNorm() {
+    double sq = 0.0;
+    for (auto& me : robots) sq += std::pow(me.Evaluate().grad_norm, 2);
+    return std::sqrt(sq);
 }
 
 Eigen::MatrixXd InMemoryTeam::X() const {

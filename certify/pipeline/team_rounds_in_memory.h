@@ -25,6 +25,11 @@ struct InMemoryTeam {
     bool AllConverged() const;
     /// The team's X: every robot's block in the robots' order (r x (d+1)n).
     Eigen::MatrixXd X() const;
+    /// The team's f, each robot's share as its SolverState evaluates it (its block against the
+    /// neighbours' poses it holds).
+    double Cost();
+    /// The team's Riemannian gradient norm from the robots' block gradients (the same way).
+    double GradientNorm();
 };
 
 /// Runs the robots of a split graph (slam::SplitGraph; every edge arrives as a loop, as a pose

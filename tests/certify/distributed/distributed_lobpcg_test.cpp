@@ -167,6 +167,38 @@ TEST(Settings, RejectsABadFieldByName) {
 namespace certislam::certify {
 namespace {
 
+/// Three robots' LOBPCG participants whose messages queue in `mail` (delivered by the test).
+struct ThreeRobots {
+    std::vector<std::function<void()>> mail;
+    std::vector<std::unique_ptr<RoundParticipant>> robots;
+
+    ThreeRobots(const std::vector<LocalCertificateProblem>& problems,
+                const LanczosSettings& settings)
+        : robots(problems.size()) {
+        const std::vector<int> team{0, 1, 2};
+        for (int k = 0; k < 3; ++k) {
+            robots[k] = MakeRoundParticipant(
+                problems[k], team, 1, settings,
+                [this, &problems, k](int step, const std::vector<slam::PoseId>& ids,
+                                     const Eigen::VectorXd& v) {
+                    for (int to = 0; to < 3; ++to) {
+                        if (!problems[to].neighbor_robots.count(k)) continue;
+                        mail.push_back(
+                            [this, to, k, step, ids, v] { robots[to]->OnVector(k, step, ids, v); });
+                    }
+                },
+                [this, k](int step, int stage, const std::vector<double>& sums) {
+                    for (int to = 0; to < 3; ++to) {
+                        if (to == k) continue;
+                        mail.push_back([this, to, k, step, stage, sums] {
+                            robots[to]->OnReduction(k, step, stage, sums);
+                        });
+                    }
+                });
+        }
+    }
+};
+
 TEST(Participant, ShuffledDeliveryReachesTheInOrderVerdict) {
     // Messages between robots arrive in any order over a network: deliver them in a seeded
     // random order and compare with the in-order run, bit for bit.
@@ -177,28 +209,9 @@ TEST(Participant, ShuffledDeliveryReachesTheInOrderVerdict) {
     const std::vector<LocalCertificateProblem> problems = LocalProblemsOf(p.rows);
     LanczosSettings settings;
     settings.method = LanczosSettings::Method::kLobpcg;
-    std::vector<std::function<void()>> mail;
-    std::vector<std::unique_ptr<RoundParticipant>> robots(problems.size());
-    const std::vector<int> team{0, 1, 2};
-    for (int k = 0; k < 3; ++k) {
-        robots[k] = MakeRoundParticipant(
-            problems[k], team, 1, settings,
-            [&, k](int step, const std::vector<slam::PoseId>& ids, const Eigen::VectorXd& v) {
-                for (int to = 0; to < 3; ++to) {
-                    if (!problems[to].neighbor_robots.count(k)) continue;
-                    mail.push_back(
-                        [&, to, k, step, ids, v] { robots[to]->OnVector(k, step, ids, v); });
-                }
-            },
-            [&, k](int step, int stage, const std::vector<double>& sums) {
-                for (int to = 0; to < 3; ++to) {
-                    if (to == k) continue;
-                    mail.push_back([&, to, k, step, stage, sums] {
-                        robots[to]->OnReduction(k, step, stage, sums);
-                    });
-                }
-            });
-    }
+    ThreeRobots team(problems, settings);
+    auto& robots = team.robots;
+    auto& mail = team.mail;
     for (auto& r : robots) r->Begin();
     std::mt19937 rng(5);
     while (!mail.empty()) {
@@ -231,31 +244,15 @@ TEST(Participant, AFailedShiftOfTheBlockJacobiFactorPrintsNothing) {
     const std::vector<LocalCertificateProblem> problems = LocalProblemsOf(p.rows);
     LanczosSettings settings;
     settings.method = LanczosSettings::Method::kLobpcg;
-    std::vector<std::unique_ptr<RoundParticipant>> robots(problems.size());
-    std::vector<std::function<void()>> mail;
-    const std::vector<int> team{0, 1, 2};
-    for (int k = 0; k < 3; ++k) {
-        robots[k] = MakeRoundParticipant(
-            problems[k], team, 1, settings,
-            [&, k](int step, const std::vector<slam::PoseId>& ids, const Eigen::VectorXd& v) {
-                for (int to = 0; to < 3; ++to) {
-                    if (problems[to].neighbor_robots.count(k))
-                        mail.push_back(
-                            [&, to, k, step, ids, v] { robots[to]->OnVector(k, step, ids, v); });
-                }
-            },
-            [&, k](int step, int stage, const std::vector<double>& sums) {
-                for (int to = 0; to < 3; ++to) {
-                    if (to != k)
-                        mail.push_back([&, to, k, step, stage, sums] {
-                            robots[to]->OnReduction(k, step, stage, sums);
-                        });
-                }
-            });
-    }
+    ThreeRobots team(problems, settings);
+    auto& robots = team.robots;
+    auto& mail = team.mail;
     ::testing::internal::CaptureStdout();
     for (auto& r : robots) r->Begin();
-    for (size_t i = 0; i < mail.size(); ++i) mail[i]();
+    for (size_t i = 0; i < mail.size(); ++i) {
+        const auto deliver = mail[i];  // a copy: delivering queues more (mail may grow)
+        deliver();
+    }
     std::fflush(stdout);
     const std::string printed = ::testing::internal::GetCapturedStdout();
     bool shifted = false;

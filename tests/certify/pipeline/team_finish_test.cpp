@@ -37,18 +37,6 @@ InMemoryTeam AfterRounds(const std::string& file, int robots, int rounds) {
     return RunTeamRoundsInMemory(Split(file, robots), SolverConfig{}, config);
 }
 
-double Cost(InMemoryTeam* team) {
-    double f = 0.0;
-    for (auto& me : team->robots) f += me.Evaluate().cost;
-    return f;
-}
-
-double GradientNorm(InMemoryTeam* team) {
-    double sq = 0.0;
-    for (auto& me : team->robots) sq += std::pow(me.Evaluate().grad_norm, 2);
-    return std::sqrt(sq);
-}
-
 // Every robot's counters but the entries it sent, and its view of f, bit for bit.
 void ExpectSameDecisions(const InMemoryFinish& f) {
     for (const auto& p : f.progress) {
@@ -67,7 +55,7 @@ TEST(TeamFinish, FromAFewRoundsEveryRobotReachesTheOptimumWithTheSameDecisions) 
     for (int overlap : {0, 1, 2}) {
         InMemoryTeam team = AfterRounds("smallGrid3D.g2o", 4, 3);
         ASSERT_FALSE(team.AllConverged());  // the finish has work to do
-        const double before = GradientNorm(&team);
+        const double before = team.GradientNorm();
         TeamFinishConfig config;
         config.overlap = overlap;
         const InMemoryFinish f = RunTeamFinishInMemory(&team, config);
@@ -77,12 +65,12 @@ TEST(TeamFinish, FromAFewRoundsEveryRobotReachesTheOptimumWithTheSameDecisions) 
         // f = tr(X Q X^T) as the certificate has it; the robots' SolverStates count an edge's
         // rotation term exactly, not as Q does for the file's unnormalised quaternions (1e-7 f).
         EXPECT_NEAR(p.cost, kSmallGridOptimum, 1e-8 * kSmallGridOptimum);
-        const double cost = Cost(&team);
+        const double cost = team.Cost();
         EXPECT_NEAR(cost, kSmallGridOptimum, 1e-6 * kSmallGridOptimum) << "overlap " << overlap;
         // Every robot's block, evaluated by its own SolverState against the neighbours' final
         // poses, is critical.
-        EXPECT_LE(GradientNorm(&team), 1e-9 * cost);
-        EXPECT_LT(GradientNorm(&team), 1e-6 * before);
+        EXPECT_LE(team.GradientNorm(), 1e-9 * cost);
+        EXPECT_LT(team.GradientNorm(), 1e-6 * before);
         // Per trust-region step: one product per CG iteration, a preconditioner before the
         // first and after every CG iteration but a last one on the boundary (two exchanges
         // with overlap, none without), the candidate; and the starting X.
@@ -98,15 +86,15 @@ TEST(TeamFinish, FromAFewRoundsEveryRobotReachesTheOptimumWithTheSameDecisions) 
 TEST(TeamFinish, IntelIsFinishedWhereTheRoundsCrawl) {
     InMemoryTeam team = AfterRounds("intel.g2o", 5, 20);
     ASSERT_FALSE(team.AllConverged());
-    const double before = Cost(&team);
+    const double before = team.Cost();
     const InMemoryFinish f = RunTeamFinishInMemory(&team, TeamFinishConfig{});
     ASSERT_TRUE(f.AllConverged());
     ExpectSameDecisions(f);
     EXPECT_FALSE(f.progress.front().at_floor);
-    EXPECT_LT(Cost(&team), before);
+    EXPECT_LT(team.Cost(), before);
     EXPECT_NEAR(f.progress.front().cost, kIntelOptimum, 1e-6 * kIntelOptimum);
     EXPECT_LE(f.progress.front().grad_norm, 1e-10 * kIntelOptimum);
-    EXPECT_LE(GradientNorm(&team), 1e-9 * kIntelOptimum);
+    EXPECT_LE(team.GradientNorm(), 1e-9 * kIntelOptimum);
 }
 
 // Two robots of smallGrid3D driven by hand, every message handed over at once.

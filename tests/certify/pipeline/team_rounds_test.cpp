@@ -27,20 +27,6 @@ constexpr double kSmallGridOptimum = 1025.39802075;  // data/g2o/README.md (SE-S
 constexpr double kRelCostTol = 1e-6;
 constexpr int kMaxRounds = 200;
 
-// The team's f at the rounds' last iterate.
-double Cost(InMemoryTeam* team) {
-    double f = 0.0;
-    for (auto& me : team->robots) f += me.Evaluate().cost;
-    return f;
-}
-
-// The team's Riemannian gradient norm at the rounds' last iterate (from the block gradients).
-double GradientNorm(InMemoryTeam* team) {
-    double sq = 0.0;
-    for (auto& me : team->robots) sq += std::pow(me.Evaluate().grad_norm, 2);
-    return std::sqrt(sq);
-}
-
 std::vector<slam::RobotGraph> SmallGrid(int robots) {
     const auto read = slam::ReadG2o(test_data::G2oPath("smallGrid3D.g2o"));
     EXPECT_EQ(read.status, slam::PoseGraphReadResult::Status::kOk) << read.error;
@@ -54,7 +40,7 @@ TEST(TeamRounds, ThreeRobotsReachTheOptimumAndAgree) {
         EXPECT_EQ(team.rounds[i], team.rounds.front());
         EXPECT_EQ(team.restarts[i], team.restarts.front());
     }
-    EXPECT_NEAR(Cost(&team), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
+    EXPECT_NEAR(team.Cost(), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
     EXPECT_LE(team.rounds.front(), std::uint64_t{kMaxRounds});
 }
 
@@ -65,8 +51,8 @@ TEST(TeamRounds, AccelerationNeedsFewerRoundsThanPlainSweeps) {
     InMemoryTeam plain = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, off);
     EXPECT_TRUE(fast.AllConverged());
     EXPECT_TRUE(plain.AllConverged());
-    EXPECT_NEAR(Cost(&fast), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
-    EXPECT_NEAR(Cost(&plain), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
+    EXPECT_NEAR(fast.Cost(), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
+    EXPECT_NEAR(plain.Cost(), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
     EXPECT_LT(fast.rounds.front(), plain.rounds.front());
     EXPECT_EQ(plain.restarts.front(), 0);
 }
@@ -81,12 +67,12 @@ TEST(TeamRounds, RefinementGoesBelowTheFirstOrderToleranceForAtMostItsRounds) {
     InMemoryTeam capped = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, unreachable);
     InMemoryTeam refined = RunTeamRoundsInMemory(SmallGrid(5), SolverConfig{}, config);
     for (const auto* team : {&first_order, &capped, &refined}) EXPECT_TRUE(team->AllConverged());
-    const double f = Cost(&refined);
-    EXPECT_LE(GradientNorm(&first_order), none.rel_grad_tol * f);
-    EXPECT_GT(GradientNorm(&first_order), config.refine_rel_grad_tol * f);
+    const double f = refined.Cost();
+    EXPECT_LE(first_order.GradientNorm(), none.rel_grad_tol * f);
+    EXPECT_GT(first_order.GradientNorm(), config.refine_rel_grad_tol * f);
     EXPECT_GE(capped.rounds.front(), first_order.rounds.front() + kBudget);
-    EXPECT_LE(GradientNorm(&capped), unreachable.rel_grad_tol * Cost(&capped));
-    EXPECT_LE(GradientNorm(&refined), config.refine_rel_grad_tol * f);
+    EXPECT_LE(capped.GradientNorm(), unreachable.rel_grad_tol * capped.Cost());
+    EXPECT_LE(refined.GradientNorm(), config.refine_rel_grad_tol * f);
     EXPECT_GT(refined.rounds.front(), first_order.rounds.front());
     EXPECT_LE(refined.rounds.front(),
               first_order.rounds.front() + static_cast<std::uint64_t>(config.refine_rounds));
@@ -400,7 +386,7 @@ TEST(TeamRounds, OverlappingSweepsReachTheOptimumInFewerRounds) {
     // Honest robots propose only poses within the receiver's reach (RoundBoundary::proposable).
     EXPECT_EQ(fast.rejected_proposals, std::vector<std::uint64_t>(2, 0));
     EXPECT_LE(2 * fast.rounds[0], plain.rounds[0]);
-    EXPECT_NEAR(Cost(&fast), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
+    EXPECT_NEAR(fast.Cost(), kSmallGridOptimum, kRelCostTol * kSmallGridOptimum);
 }
 
 TEST(TeamRounds, OverlapDepthOutOfRangeIsNamed) {

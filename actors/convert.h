@@ -15,6 +15,7 @@
 #include "certify/certificate.h"
 #include "certify/distributed/distributed_lanczos.h"
 #include "certify/pipeline/solver_state.h"
+#include "certify/pipeline/team_finish.h"
 #include "certislam/v1/certificate.pb.h"
 #include "certislam/v1/keyframe.pb.h"
 #include "certislam/v1/loop_closure.pb.h"
@@ -119,6 +120,27 @@ struct RoundReduction {
 /// A CertificateReduction as a RoundReduction; nullopt unless round > 0, every value is finite
 /// and robot, step and stage fit an int.
 std::optional<RoundReduction> FromProto(const v1::CertificateReduction& reduction);
+
+/// A peer's share of the team's second-order finish (FinishMessage), as TeamFinish takes it.
+struct FinishBody {
+    v1::FinishMessage::Kind kind = v1::FinishMessage::KIND_UNSPECIFIED;
+    int robot = 0;                         ///< the sender (the header's robot id)
+    int to = 0;                            ///< edges, vector: the receiving robot
+    std::uint64_t step = 0;                ///< vector, sums
+    int staircase_level = 0;               ///< the sender's
+    std::vector<slam::PoseId> ids;         ///< edges: the sender's poses; vector: the entries'
+    Eigen::MatrixXd blocks;                ///< vector: r x 4|ids| (r x 0 when ids is empty)
+    std::vector<double> values;            ///< sums (a failing robot's share is not finite)
+    std::vector<slam::LoopClosure> edges;  ///< edges
+};
+/// A FinishMessage as a FinishBody; nullopt unless the kind is known, robot ids and level fit an
+/// int, a vector's 1 <= rank_r <= 64 and its value count is rank_r * 4 per id, and every id and
+/// edge decodes. The finish itself checks steps, ranks, finiteness and whose poses they are.
+std::optional<FinishBody> FromProto(const v1::FinishMessage& message);
+/// One robot's finish output on the wire (header, session and level are the sender's to stamp).
+v1::FinishMessage ToProto(const certify::FinishEdges& edges);
+v1::FinishMessage ToProto(const certify::FinishVector& vector);
+v1::FinishMessage ToProto(const certify::FinishSums& sums);
 
 /// Largest uncompressed submap a peer's MapUpdate may claim.
 inline constexpr std::uint64_t kMaxSubmapBytes = 1ull << 30;

@@ -52,6 +52,15 @@ struct PoseGraphTeamResult {
     /// The file's cost minus the team's for every X (merged parallel edges, slam::CostOffset):
     /// the report's objective and lower bound plus this are the file's.
     double cost_offset = 0.0;
+    /// The team's second-order finish after rounds that did not converge (SolverSnapshot::finish;
+    /// robot 0's counters, which every robot shares but its bytes): trust-region steps, CG
+    /// iterations, neighbour exchanges, sums, and how the last one ended ("" when none ran)
+    int finish_steps = 0;
+    int finish_cg_iterations = 0;
+    std::uint64_t finish_exchanges = 0;
+    std::uint64_t finish_reductions = 0;
+    std::string finish_status;
+    std::uint64_t finish_dropped = 0;  ///< finish messages the robots dropped (summed)
 };
 
 /// What `nodes` (the anchor first; PoseGraphNode or RobotNode) have done so far: counters summed
@@ -72,6 +81,7 @@ PoseGraphTeamResult SummariseNodes(const std::vector<const Node*>& nodes) {
         }
         out.escapes += node->Certifier().Escapes();
         out.rejected_proposals += s.rejected_proposals;
+        out.finish_dropped += s.finish_dropped + s.finish.dropped;
         for (const auto& pose : s.trajectory) {
             const Eigen::Isometry3d& T = pose.T_world_body;
             out.out_of_plane_m = std::max(out.out_of_plane_m, std::abs(T.translation().z()));
@@ -88,6 +98,11 @@ PoseGraphTeamResult SummariseNodes(const std::vector<const Node*>& nodes) {
     out.rank = s.rank;
     out.restarts = s.restarts;
     out.overlap_ends = s.overlap_ends;
+    out.finish_steps = s.finish.iterations;
+    out.finish_cg_iterations = s.finish.tcg_iterations;
+    out.finish_exchanges = s.finish.exchanges;
+    out.finish_reductions = s.finish.reductions;
+    out.finish_status = s.finish_status;
     out.fallbacks = anchor.Certifier().Fallbacks();
     out.certificate_rounds = anchor.Certifier().Rounds();
     out.lanczos_steps = anchor.Certifier().LanczosSteps();

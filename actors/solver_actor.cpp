@@ -24,6 +24,11 @@ void SolverActorConfig::Validate() const {
         throw std::invalid_argument("SolverActorConfig.publish_period = " +
                                     std::to_string(publish_period.count()) + " ms: must be >= 0");
     }
+    if (finish_after_rounds < 0) {
+        throw std::invalid_argument("SolverActorConfig.finish_after_rounds = " +
+                                    std::to_string(finish_after_rounds) + ": must be >= 0");
+    }
+    finish.Validate();
 }
 
 SolverActor::SolverActor(zmq::context_t& context, const TeamWiring& wiring,
@@ -90,6 +95,8 @@ void SolverActor::Subscribe() {
     });
     On(v1::PublicPoses::descriptor()->full_name(),
        [this](const transport::Message& m) { return OnPublicPoses(m); });
+    On(v1::FinishMessage::descriptor()->full_name(),
+       [this](const transport::Message& m) { return OnFinish(m); });
     On(v1::SolverStatus::descriptor()->full_name(), [this](const transport::Message& m) {
         const auto status = transport::Unpack<v1::SolverStatus>(m);
         if (!status || !IsValidStatus(*status)) return false;
@@ -324,6 +331,7 @@ void SolverActor::SendStatus() {
 void SolverActor::Heartbeat() {
     if (state_.NumPoses() == 0) return;
     const bool in_rounds = InRounds() && !rounds_converged_;
+    if (in_rounds && finish_) return;  // the finish's messages are never lost (reliable edges)
     if (in_rounds) {
         // Rounds stalled for a heartbeat: a peer may have joined late or lost a message; re-send
         // the last two rounds' messages (receivers keep one copy per round).
@@ -409,9 +417,18 @@ void SolverActor::SendBundle() {
 }
 
 SolverActor::SnapshotKey SolverActor::KeyOfSnapshot() const {
-    return {steps_,    rounds_swept_,    round_session_, rounds_converged_,       rounds_gave_up_,
-            local_ok_, publish_pending_, IsFinal(),      state_.StaircaseLevel(), grad_norm_,
-            changed_};
+    return {steps_,
+            rounds_swept_,
+            round_session_,
+            rounds_converged_,
+            rounds_gave_up_,
+            local_ok_,
+            publish_pending_,
+            IsFinal(),
+            state_.StaircaseLevel(),
+            grad_norm_,
+            changed_,
+            finish_ ? finish_->Progress().exchanges : 0};
 }
 
 void SolverActor::UpdateSnapshot() {
@@ -456,6 +473,10 @@ void SolverActor::UpdateSnapshot() {
     s.rounds_gave_up = rounds_gave_up_;
     s.restored = restored_;
     s.round_session = round_session_;
+    s.finish = FinishTotals();
+    s.finishes = finishes_;
+    s.finish_status = finish_ ? "running" : finish_status_;
+    s.finish_dropped = finish_dropped_;
     std::lock_guard lock(snapshot_mutex_);
     snapshot_ = std::move(s);
 }

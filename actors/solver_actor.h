@@ -15,10 +15,12 @@
 #include <tuple>
 #include <vector>
 
+#include "actors/convert.h"
 #include "actors/durable_log.h"
 #include "actors/node_actor.h"
 #include "certify/pipeline/overlap_sweep.h"
 #include "certify/pipeline/solver_state.h"
+#include "certify/pipeline/team_finish.h"
 #include "certify/pipeline/team_rounds.h"
 #include "certislam/v1/certificate.pb.h"
 #include "certislam/v1/rbcd.pb.h"
@@ -58,6 +60,13 @@ struct SolverActorConfig {
     /// Rounds that made no progress this long (peers silent) give up: asynchronous updates take
     /// over, as after rounds.max_rounds; > 0.
     std::chrono::milliseconds rounds_stall{20000};
+    /// Synchronous mode: rounds that did not converge in this many hand the team to its
+    /// second-order finish (certify/pipeline/team_finish.h: a distributed trust region on the
+    /// whole X with neighbour exchanges and sums only), which converges where RBCD's linear tail
+    /// crawls; a finish that does not converge leaves asynchronous updates, as max_rounds does.
+    /// 0: no finish. >= 0.
+    int finish_after_rounds = 50;
+    certify::TeamFinishConfig finish;  ///< the finish
 
     /// Throws std::invalid_argument naming the field, its value and the rule it breaks.
     void Validate() const;
@@ -95,6 +104,13 @@ struct SolverSnapshot {
     /// The team's round session: 0 at the start, a new one each time a peer restarted and the
     /// team's rounds began again from their iterates.
     std::uint64_t round_session = 0;
+    /// The team's second-order finish (SolverActorConfig::finish_after_rounds), summed over every
+    /// finish this solver ran; `finish_status` is the last one's ("" none, "running",
+    /// "converged", "not converged", "inconsistent").
+    certify::TeamFinishProgress finish;
+    int finishes = 0;
+    std::string finish_status;
+    std::uint64_t finish_dropped = 0;  ///< finish messages dropped before or after a finish
 };
 
 /// One robot's RBCD solver.
@@ -133,6 +149,18 @@ class SolverActor final : public NodeActor {
     bool InSession(int robot, std::uint64_t session, std::uint64_t incarnation);
     void NewSession(std::uint64_t session);
     void StartRounds();
+    /// The rounds end after finish_after_rounds and the finish follows (not asynchronous updates).
+    bool FinishesRounds() const;
+    /// The rounds gave up after finish_after_rounds: the finish from the own block now.
+    void StartFinish();
+    bool OnFinish(const transport::Message& m);
+    /// Sends what the finish has to send (its sums fed back too), then ends it once done.
+    void PumpFinish();
+    void EndFinish();
+    void DropFinish();
+    void FeedFinish(const FinishBody& body);
+    /// The finish's counters so far, with those of the finishes before.
+    certify::TeamFinishProgress FinishTotals() const;
     /// Ends rounds_ (their counts kept) and its overlapping sweep.
     void DropRounds();
     /// The own poses near the neighbours (certify::BoundaryOf), kept until the graph changes.
@@ -155,8 +183,9 @@ class SolverActor final : public NodeActor {
     bool PublishDue() const;  ///< publish_period passed, or the graph final or settled
     void UpdateSnapshot();
     /// What a snapshot shows that a tick can change (the rest changes with the graph, `changed_`).
-    using SnapshotKey = std::tuple<std::uint64_t, std::uint64_t, std::uint64_t, bool, bool, bool,
-                                   bool, bool, int, double, std::chrono::steady_clock::time_point>;
+    using SnapshotKey =
+        std::tuple<std::uint64_t, std::uint64_t, std::uint64_t, bool, bool, bool, bool, bool, int,
+                   double, std::chrono::steady_clock::time_point, std::uint64_t>;
     SnapshotKey KeyOfSnapshot() const;
     void Changed();
     void Replay();           ///< durable log: loops, and the last checkpoint kept for later
@@ -234,6 +263,17 @@ class SolverActor final : public NodeActor {
     std::uint64_t incarnation_ = 0;  ///< random, non-zero (set at construction): tells a restart
     std::map<int, std::uint64_t> incarnations_;  ///< robot -> incarnation last heard
     bool chordal_started_ = false;  ///< the first rounds began from the chordal start; later: not
+
+    std::optional<certify::TeamFinish> finish_;  ///< running, after the rounds gave up
+    int finish_level_ = -1;                      ///< staircase level finish_ belongs to
+    std::vector<FinishBody> early_finish_;       ///< finish messages heard before finish_ began
+    /// Early finish messages kept per robot of the team at most (a peer is a few exchanges ahead
+    /// at most: it waits for this robot's); beyond: dropped and counted.
+    static constexpr std::size_t kEarlyFinishPerRobot = 8;
+    certify::TeamFinishProgress finish_before_;  ///< summed over the finishes ended
+    int finishes_ = 0;
+    std::string finish_status_;
+    std::uint64_t finish_dropped_ = 0;
 
     std::unique_ptr<DurableLog> log_;
     std::optional<v1::SolverCheckpoint> checkpoint_;  ///< replayed, not restored yet

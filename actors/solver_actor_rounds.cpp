@@ -100,6 +100,7 @@ void SolverActor::NewSession(std::uint64_t session) {
     round_session_ = session;
     early_poses_.clear();  // of older sessions
     early_sums_.clear();
+    early_finish_.clear();
     last_round_poses_.clear();
     last_round_sums_.clear();
     last_round_progress_ = std::chrono::steady_clock::now();
@@ -156,7 +157,11 @@ bool SolverActor::SyncAction(const certify::RoundAction& a) {
             publish_pending_ = true;
             return false;
         case K::kGaveUp:
-            rounds_gave_up_ = true;
+            if (FinishesRounds()) {
+                StartFinish();  // the rounds' budget was finish_after_rounds: the finish's turn
+            } else {
+                rounds_gave_up_ = true;
+            }
             return false;
     }
     return false;
@@ -165,7 +170,7 @@ bool SolverActor::SyncAction(const certify::RoundAction& a) {
 // Takes every action the rounds allow now. Called when a round message arrives, not only on the
 // tick: each round is several message hops, and waiting for a tick at every hop paced the team.
 void SolverActor::AdvanceRounds() {
-    if (!rounds_ || rounds_level_ != state_.StaircaseLevel()) return;
+    if (!rounds_ || finish_ || rounds_level_ != state_.StaircaseLevel()) return;
     if (!boundary_) rounds_->SetProposable(Boundary().proposable);  // the graph changed
     bool progressed = false;
     while (!rounds_converged_ && !rounds_gave_up_ && SyncAction(rounds_->Next())) {
@@ -216,8 +221,9 @@ void SolverActor::SyncTick() {
 
 void SolverActor::StartRounds() {
     const auto nbrs = state_.Neighbours();
-    rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()),
-                    config_.rounds);
+    certify::TeamRoundsConfig rounds = config_.rounds;
+    if (FinishesRounds()) rounds.max_rounds = config_.finish_after_rounds;
+    rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()), rounds);
     rounds_->SetProposable(Boundary().proposable);
     overlap_.reset();
     rounds_level_ = state_.StaircaseLevel();
@@ -245,6 +251,12 @@ void SolverActor::DropRounds() {
     }
     rounds_.reset();
     overlap_.reset();
+    DropFinish();
+}
+
+bool SolverActor::FinishesRounds() const {
+    return config_.finish_after_rounds > 0 &&
+           config_.finish_after_rounds <= config_.rounds.max_rounds;
 }
 
 const certify::RoundBoundary& SolverActor::Boundary() {

@@ -269,6 +269,7 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
         r.seconds = std::max(r.seconds, Field<double>(j, "seconds", robot));
         r.escapes += Field<int>(j, "escapes", robot);
         r.rejected_proposals += Field<std::uint64_t>(j, "rejected_proposals", robot);
+        r.finish_dropped += Field<nlohmann::json>(j, "finish", robot).value("dropped", 0ull);
         sync = sync && Field<std::string>(j, "solver_mode", robot) == "synchronous";
         const auto plane = Field<nlohmann::json>(j, "out_of_plane", robot);
         r.out_of_plane_m = std::max(r.out_of_plane_m, plane.value("m", 0.0));
@@ -285,6 +286,12 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
     r.restarts = Field<int>(anchor, "restarts", id);
     r.overlap_ends = Field<int>(anchor, "overlap_ends", id);
     r.fallbacks = Field<int>(anchor, "central_fallbacks", id);
+    const auto finish = Field<nlohmann::json>(anchor, "finish", id);
+    r.finish_status = finish.value("status", "");
+    r.finish_steps = finish.value("steps", 0);
+    r.finish_cg_iterations = finish.value("cg_iterations", 0);
+    r.finish_exchanges = finish.value("exchanges", 0ull);
+    r.finish_reductions = finish.value("reductions", 0ull);
     if (anchor.contains("certificate_report")) {
         v1::CertificateReport report;
         const auto status = google::protobuf::util::JsonStringToMessage(

@@ -159,7 +159,7 @@ std::vector<ConfigKey> PoseGraphSourceKeys() {
     };
 }
 
-std::vector<ConfigKey> SolverAndCertifierKeys() {
+std::vector<ConfigKey> SolverKeys() {
     return {
         // solver
         Num<int>(
@@ -188,6 +188,18 @@ std::vector<ConfigKey> SolverAndCertifierKeys() {
             "solver.mode rounds: a robot's sweep also moves the poses of later-sweeping neighbours "
             "within this many edges of its own, and they go on from there (overlapping blocks; 0: "
             "own poses only); one value per team: round poses of another are dropped (counted)"),
+        Num<int>(
+            "solver.finish_after_rounds",
+            [](TeamConfig & c, int) -> auto& { return c.node.solver.finish_after_rounds; },
+            {0.0, 1e6},
+            "solver.mode rounds: rounds that did not converge in this many hand the team to its "
+            "second-order finish (a distributed trust region on the whole X: neighbour exchanges "
+            "and sums only); 0: none (asynchronous updates after 1000 rounds)"),
+        Num<int>(
+            "solver.finish_overlap",
+            [](TeamConfig & c, int) -> auto& { return c.node.solver.finish.overlap; }, {0.0, 8.0},
+            "the finish's Schwarz domains: the own poses and the neighbours' within this many "
+            "edges (0: block Jacobi)"),
         Num<double>(
             "solver.odometry_sigma_t_m", [](TeamConfig & c, int) -> auto& {
                 return c.node.solver.solver.noise.odometry_sigma_t_m;
@@ -202,7 +214,11 @@ std::vector<ConfigKey> SolverAndCertifierKeys() {
             "solver.max_staircase_steps",
             [](TeamConfig & c, int) -> auto& { return c.node.certifier.max_staircase_steps; },
             {0.0, 20.0}, "rank increases of the Riemannian staircase at most"),
-        // certifier
+    };
+}
+
+std::vector<ConfigKey> CertifierKeys() {
+    return {
         Choice<bool>(
             "certifier.mode",
             [](TeamConfig & c, int) -> auto& { return c.node.certifier.distributed; },
@@ -365,7 +381,7 @@ const std::vector<ConfigKey>& TeamConfigKeys() {
     static const std::vector<ConfigKey> keys = [] {
         std::vector<ConfigKey> all;
         for (auto part : {TopKeys(), SourceKeys(), SplitSourceKeys(), PoseGraphSourceKeys(),
-                          SolverAndCertifierKeys(), MatcherKeys(), MappingAndNetworkKeys()}) {
+                          SolverKeys(), CertifierKeys(), MatcherKeys(), MappingAndNetworkKeys()}) {
             for (auto& key : part) all.push_back(std::move(key));
         }
         return all;

@@ -121,6 +121,11 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
                            {"overlap_ends", s.overlap_ends},
                            {"converged", s.rounds_converged},
                            {"gave_up", s.rounds_gave_up}};
+        // The team's second-order finish after rounds that did not converge (none: status "")
+        robot["finish"] = {{"status", s.finish_status},
+                           {"steps", s.finish.iterations},
+                           {"cg_iterations", s.finish.tcg_iterations},
+                           {"exchanges", s.finish.exchanges}};
         Evaluate(source, robots[k], s, &robot);
         if (k < meshes.size() && !meshes[k].is_null()) robot["mesh"] = meshes[k];
         report["robots"].push_back(robot);

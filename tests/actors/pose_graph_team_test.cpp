@@ -9,6 +9,7 @@
 #include <cmath>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "certify/pose_graph_solver.h"
 #include "slam/io/g2o_io.h"
@@ -26,25 +27,16 @@ slam::PoseGraph Read(const std::string& name) {
     return read.graph;
 }
 
-/// The file's measurement rotations (non-unit quaternions as written, merged parallel edges) go
-/// over the wire as they are, so the team solves the file's problem: cost within kRelCost.
-void ExpectTeamCertifiesTheOptimum(const slam::PoseGraph& graph, const std::string& name,
-                                   int robots) {
-    const auto central = certify::SolvePoseGraph(graph);
-    ASSERT_EQ(central.status, certify::PoseGraphSolverResult::Status::kCertified);
-
-    PoseGraphNodeConfig config;
-    config.quiet = std::chrono::milliseconds(300);
-    const auto graphs = slam::SplitGraph(graph, slam::ContiguousPartition(graph.n, robots));
-    const PoseGraphTeamResult team = RunPoseGraphTeam(graphs, config, kTimeout);
-
+void ExpectCertifiedOptimum(const PoseGraphTeamResult& team,
+                            const std::vector<slam::RobotGraph>& graphs, double central_cost,
+                            const std::string& name, int robots) {
     ASSERT_TRUE(team.done) << name << " in " << robots << " robots: not certified in time";
     ASSERT_TRUE(team.report.has_value());
     EXPECT_EQ(team.report->verdict(), v1::CERTIFICATE_VERDICT_CERTIFIED);
     EXPECT_DOUBLE_EQ(team.cost_offset, slam::CostOffset(graphs));
     const double cost = team.report->objective() + team.cost_offset;
-    EXPECT_LE(std::abs(cost - central.cost) / central.cost, kRelCost)
-        << "distributed " << cost << " vs in-process " << central.cost;
+    EXPECT_LE(std::abs(cost - central_cost) / central_cost, kRelCost)
+        << "distributed " << cost << " vs in-process " << central_cost;
     EXPECT_EQ(static_cast<int>(team.iterations_by_robot.size()), robots);
     EXPECT_GT(team.iterations, 0u);
     EXPECT_GE(team.certificate_rounds, 1);
@@ -56,6 +48,21 @@ void ExpectTeamCertifiesTheOptimum(const slam::PoseGraph& graph, const std::stri
     EXPECT_EQ(team.bytes_between_robots, team.bytes_by_actor.at("solver") +
                                              team.bytes_by_actor.at("certifier") +
                                              team.bytes_by_actor.at("pose_graph"));
+}
+
+/// The file's measurement rotations (non-unit quaternions as written, merged parallel edges) go
+/// over the wire as they are, so the team solves the file's problem: cost within kRelCost.
+PoseGraphTeamResult ExpectTeamCertifiesTheOptimum(const slam::PoseGraph& graph,
+                                                  const std::string& name, int robots,
+                                                  PoseGraphNodeConfig config = {}) {
+    const auto central = certify::SolvePoseGraph(graph);
+    EXPECT_EQ(central.status, certify::PoseGraphSolverResult::Status::kCertified);
+
+    config.quiet = std::chrono::milliseconds(300);
+    const auto graphs = slam::SplitGraph(graph, slam::ContiguousPartition(graph.n, robots));
+    PoseGraphTeamResult team = RunPoseGraphTeam(graphs, config, kTimeout);
+    ExpectCertifiedOptimum(team, graphs, central.cost, name, robots);
+    return team;
 }
 
 TEST(PoseGraphTeam, TinyGridInTwoRobotsCertifiesTheInProcessOptimum) {
@@ -88,6 +95,35 @@ TEST(PoseGraphTeam, ParallelEdgesInFiveRobotsCertifyTheInProcessOptimum) {
     }
     ASSERT_GT(slam::MergeParallelEdges(graph).merged, 0);
     ExpectTeamCertifiesTheOptimum(graph, "smallGrid3D.g2o with parallel edges", 5);
+}
+
+// Rounds cut short after 3 hand the team to its second-order finish (solver.finish_after_rounds):
+// the robots' finish messages over inproc take it to the optimum, which the team certifies.
+TEST(PoseGraphTeam, TheFinishAfterThreeRoundsCertifiesTheInProcessOptimum) {
+    PoseGraphNodeConfig config;
+    config.solver.finish_after_rounds = 3;
+    const PoseGraphTeamResult team =
+        ExpectTeamCertifiesTheOptimum(Read("smallGrid3D.g2o"), "smallGrid3D.g2o", 5, config);
+    EXPECT_EQ(team.finish_status, "converged");
+    EXPECT_GE(team.finish_steps, 1);
+    EXPECT_GT(team.finish_cg_iterations, 0);
+    EXPECT_GE(team.finish_exchanges, std::uint64_t(team.finish_cg_iterations));
+    EXPECT_GT(team.finish_reductions, 0u);
+    EXPECT_EQ(team.finish_dropped, 0u);
+    EXPECT_EQ(team.solver_mode, "synchronous");  // no robot went on asynchronously
+    // Three sweeps and the finish's block: nothing more moved any robot's block.
+    for (const auto& [robot, steps] : team.iterations_by_robot) EXPECT_EQ(steps, 4u) << robot;
+}
+
+// Without the finish (0) the same rounds run to their tolerance and the finish never starts.
+TEST(PoseGraphTeam, NoFinishWhenTheRoundsConvergeFirst) {
+    PoseGraphNodeConfig config;
+    config.solver.finish_after_rounds = 0;
+    const PoseGraphTeamResult team =
+        ExpectTeamCertifiesTheOptimum(Read("smallGrid3D.g2o"), "smallGrid3D.g2o", 5, config);
+    EXPECT_EQ(team.finish_status, "");
+    EXPECT_EQ(team.finish_cg_iterations, 0);
+    EXPECT_GT(team.iterations, 3u);
 }
 
 }  // namespace

@@ -208,6 +208,7 @@ void SolverActor::SyncTick() {
         now - last_round_progress_ >= config_.rounds_stall) {
         std::fprintf(stderr, "solver %d: round session %llu stalled: asynchronous updates\n",
                      RobotId(), static_cast<unsigned long long>(round_session_));
+        DropFinish();            // a finish waiting for a silent peer too
         rounds_gave_up_ = true;  // Tick's asynchronous path from here, as after max_rounds
         work_ = true;
         return;

@@ -35,6 +35,7 @@ struct SolveOptions {
     std::string transport = "inproc";
     std::string eigensolver;  ///< empty: the certifier's default (lobpcg)
     int overlap = -1;         ///< --distributed: solver.rounds_overlap; -1: its default
+    int finish_after = -1;    ///< --distributed: solver.finish_after_rounds; -1: its default
     double timeout_s = 600.0;
     double max_relative_bound = certify::CertificateConfig{}.max_relative_bound;
 };
@@ -167,6 +168,10 @@ void AddOptions(CLI::App& app, SolveOptions& o) {
                    "--distributed: each robot's sweep also moves its later-sweeping neighbours' "
                    "poses within this many edges (solver.rounds_overlap; 0: own poses only)")
         ->check(CLI::Range(0, 16));
+    app.add_option("--finish-after-rounds", o.finish_after,
+                   "--distributed: rounds that did not converge in this many hand the team to its "
+                   "second-order finish (solver.finish_after_rounds, default 50; 0: none)")
+        ->check(CLI::Range(0, 1000000));
     app.add_option("--timeout", o.timeout_s, "--distributed: give up after this many seconds")
         ->check(CLI::PositiveNumber);
 }
@@ -184,8 +189,10 @@ int CheckOptionCombinations(const SolveOptions& o) {
                      "--rank or --out\n");
         return kExitUsage;
     }
-    if (!o.distributed && o.overlap >= 0) {
-        std::fprintf(stderr, "certislam solve: error: --overlap needs --distributed\n");
+    if (!o.distributed && (o.overlap >= 0 || o.finish_after >= 0)) {
+        std::fprintf(stderr,
+                     "certislam solve: error: --overlap and --finish-after-rounds need "
+                     "--distributed\n");
         return kExitUsage;
     }
     if (!o.distributed && !o.eigensolver.empty()) {
@@ -226,6 +233,7 @@ int RunSolve(int argc, char** argv) {
         d.transport = o.transport;
         if (!o.eigensolver.empty()) d.eigensolver = o.eigensolver;
         d.overlap = o.overlap;
+        d.finish_after = o.finish_after;
         return RunDistributedSolve(graph, d);
     }
     certify::PoseGraphSolverConfig config;

@@ -80,6 +80,7 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
     config.quiet = std::chrono::milliseconds(std::llround(o.quiet_s * 1000.0));
     config.certifier.certificate.max_relative_bound = o.max_relative_bound;
     if (o.overlap >= 0) config.solver.rounds.overlap_depth = o.overlap;
+    if (o.finish_after >= 0) config.solver.finish_after_rounds = o.finish_after;
     config.certifier.lanczos.method = o.eigensolver == "lanczos"
                                           ? certify::LanczosSettings::Method::kLanczos
                                           : certify::LanczosSettings::Method::kLobpcg;
@@ -88,6 +89,7 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
     nlohmann::json j = TeamResultJson(result, static_cast<int>(graphs.size()));
     j["eigensolver"] = o.eigensolver;
     j["overlap"] = config.solver.rounds.overlap_depth;
+    j["finish_after_rounds"] = config.solver.finish_after_rounds;
     return PrintDistributedReport(&j, result, graph, o);
 }
 

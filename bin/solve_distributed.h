@@ -24,6 +24,8 @@ struct DistributedSolveOptions {
     std::string eigensolver = "lobpcg";  ///< the certificate's: lobpcg or lanczos
     /// The rounds' overlapping sweeps (solver.rounds_overlap); -1: the configuration's default.
     int overlap = -1;
+    /// Rounds before the team's finish (solver.finish_after_rounds); -1: the default.
+    int finish_after = -1;
 };
 
 /// Adds the file's fields to the team's report `j` (of `result`) and prints it (JSON or text);

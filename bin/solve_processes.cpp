@@ -27,6 +27,7 @@
 #include <thread>
 #include <utility>
 
+#include "actors/solver_actor.h"
 #include "bin/command.h"
 #include "certify/pipeline/team_rounds.h"
 #include "slam/core/graph_split.h"
@@ -119,6 +120,7 @@ nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partit
     config["certifier"]["max_relative_bound"] = o.max_relative_bound;
     config["certifier"]["eigensolver"] = o.eigensolver;
     if (o.overlap >= 0) config["solver"]["rounds_overlap"] = o.overlap;
+    if (o.finish_after >= 0) config["solver"]["finish_after_rounds"] = o.finish_after;
     config["source"] = {{"kind", "pose_graph"}, {"graph", fs::absolute(o.file).string()}};
     for (int k = 0; k < robots; ++k) {
         config["source"]["ranges"][std::to_string(k)] = {{"begin", partition.begin[k]},
@@ -390,6 +392,8 @@ int RunProcessSolve(const slam::PoseGraph& graph, const slam::Partition& partiti
     nlohmann::json j = TeamResultJson(result, partition.num_robots(), o.transport);
     j["eigensolver"] = o.eigensolver;
     j["overlap"] = o.overlap >= 0 ? o.overlap : certify::TeamRoundsConfig{}.overlap_depth;
+    j["finish_after_rounds"] =
+        o.finish_after >= 0 ? o.finish_after : actors::SolverActorConfig{}.finish_after_rounds;
     j["peak_rss_mb"] = peak;  // the largest robot process
     j["peak_rss_mb_by_robot"] = rss;
     j["wall_seconds"] = run.wall;

@@ -218,12 +218,14 @@ TEST(SolveDistributed, RobotProcessesOverIpcAndTcpCertifyTheInProcessOptimum) {
 TEST(SolveDistributed, OverlappingSweepsCertifyTheOptimumInFewerIterations) {
     const std::string file = G2oPath("smallGrid3D.g2o");
     const auto central = Json("solve " + file + " --robots 1 --quiet");
-    const auto own = Json("solve " + file + " --robots 2 --distributed --overlap 0");
+    // The rounds alone are compared: no finish after 50 of them.
+    const auto own =
+        Json("solve " + file + " --robots 2 --distributed --overlap 0 --finish-after-rounds 0");
     ASSERT_FALSE(own.is_discarded());
     EXPECT_EQ(own["overlap"].get<int>(), 0);
     for (const std::string transport : {"inproc", "tcp"}) {
         const auto team = Json("solve " + file + " --robots 2 --distributed --timeout 120 " +
-                               "--overlap 4 --transport " + transport);
+                               "--overlap 4 --finish-after-rounds 0 --transport " + transport);
         ASSERT_FALSE(team.is_discarded()) << transport;
         EXPECT_EQ(team["overlap"].get<int>(), 4);
         EXPECT_EQ(team["verdict"], "certified") << transport;
@@ -237,7 +239,32 @@ TEST(SolveDistributed, OverlappingSweepsCertifyTheOptimumInFewerIterations) {
     const ShellResult alone =
         Shell(std::string(CERTISLAM_BINARY) + " solve " + file + " --overlap 2 2>&1");
     EXPECT_EQ(alone.exit_code, 2) << alone.out;
-    EXPECT_NE(alone.out.find("--overlap needs --distributed"), std::string::npos) << alone.out;
+    EXPECT_NE(alone.out.find("--overlap and --finish-after-rounds need --distributed"),
+              std::string::npos)
+        << alone.out;
+}
+
+// Rounds cut short after 3 hand the team to its second-order finish: its exchanges and sums cross
+// between robot processes over tcp, and the team certifies the in-process optimum; every robot
+// process's counters are merged into the report.
+TEST(SolveDistributed, TheFinishAfterThreeRoundsCertifiesOverTcp) {
+    const std::string file = G2oPath("smallGrid3D.g2o");
+    const auto central = Json("solve " + file + " --robots 1 --quiet");
+    const auto team = Json("solve " + file +
+                           " --robots 3 --distributed --timeout 120 --finish-after-rounds 3 "
+                           "--transport tcp");
+    ASSERT_FALSE(team.is_discarded());
+    EXPECT_EQ(team["verdict"], "certified");
+    EXPECT_EQ(team["finish_after_rounds"].get<int>(), 3);
+    EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), kRelCost);
+    EXPECT_EQ(team["solver_mode"], "synchronous");
+    const auto& finish = team["finish"];
+    EXPECT_EQ(finish["status"], "converged") << finish;
+    EXPECT_GE(finish["steps"].get<int>(), 1) << finish;
+    EXPECT_GT(finish["cg_iterations"].get<int>(), 0) << finish;
+    EXPECT_GT(finish["reductions"].get<int>(), finish["steps"].get<int>()) << finish;
+    EXPECT_EQ(finish["dropped"].get<int>(), 0) << finish;
+    EXPECT_EQ(team["iterations"].get<int>(), 4);  // three sweeps and the finish's block
 }
 
 TEST(SolveDistributed, TransportNeedsDistributedAndAnIpcPathMustFit) {

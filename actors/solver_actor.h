@@ -60,11 +60,12 @@ struct SolverActorConfig {
     /// Rounds that made no progress this long (peers silent) give up: asynchronous updates take
     /// over, as after rounds.max_rounds; > 0.
     std::chrono::milliseconds rounds_stall{20000};
-    /// Synchronous mode: rounds that did not converge in this many hand the team to its
-    /// second-order finish (certify/pipeline/team_finish.h: a distributed trust region on the
-    /// whole X with neighbour exchanges and sums only), which converges where RBCD's linear tail
-    /// crawls; a finish that does not converge leaves asynchronous updates, as max_rounds does.
-    /// 0: no finish. >= 0.
+    /// Synchronous mode: from this round on, rounds whose linear rate projects their tolerance
+    /// beyond rounds.max_rounds (TeamRoundsConfig::hand_over_after), and rounds that reach
+    /// max_rounds, hand the team to its second-order finish (certify/pipeline/team_finish.h: a
+    /// distributed trust region on the whole X with neighbour exchanges and sums only), which
+    /// converges where RBCD's linear tail crawls; a finish that does not converge leaves
+    /// asynchronous updates. 0: no finish (asynchronous updates after max_rounds). >= 0.
     int finish_after_rounds = 50;
     certify::TeamFinishConfig finish;  ///< the finish
 
@@ -149,9 +150,9 @@ class SolverActor final : public NodeActor {
     bool InSession(int robot, std::uint64_t session, std::uint64_t incarnation);
     void NewSession(std::uint64_t session);
     void StartRounds();
-    /// The rounds end after finish_after_rounds and the finish follows (not asynchronous updates).
+    /// Rounds that give up hand over to the finish (not to asynchronous updates).
     bool FinishesRounds() const;
-    /// The rounds gave up after finish_after_rounds: the finish from the own block now.
+    /// The rounds gave up (FinishesRounds): the finish from the own block now.
     void StartFinish();
     bool OnFinish(const transport::Message& m);
     /// Sends what the finish has to send (its sums fed back too), then ends it once done.

@@ -1,6 +1,6 @@
 // Solver actor, synchronous mode: the team's second-order finish (certify/pipeline/team_finish.h)
-// after rounds that did not converge in solver.finish_after_rounds, driven by the peers' finish
-// messages on the poses stream.
+// after rounds too slow to converge (solver.finish_after_rounds, solver.rounds_max), driven by the
+// peers' finish messages on the poses stream.
 #include <algorithm>
 #include <cstdio>
 

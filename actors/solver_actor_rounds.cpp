@@ -158,7 +158,7 @@ bool SolverActor::SyncAction(const certify::RoundAction& a) {
             return false;
         case K::kGaveUp:
             if (FinishesRounds()) {
-                StartFinish();  // the rounds' budget was finish_after_rounds: the finish's turn
+                StartFinish();  // too slow to converge in max_rounds, or they did not
             } else {
                 rounds_gave_up_ = true;
             }
@@ -223,7 +223,7 @@ void SolverActor::SyncTick() {
 void SolverActor::StartRounds() {
     const auto nbrs = state_.Neighbours();
     certify::TeamRoundsConfig rounds = config_.rounds;
-    if (FinishesRounds()) rounds.max_rounds = config_.finish_after_rounds;
+    rounds.hand_over_after = config_.finish_after_rounds;
     rounds_.emplace(RobotId(), Wiring().robots, std::set<int>(nbrs.begin(), nbrs.end()), rounds);
     rounds_->SetProposable(Boundary().proposable);
     overlap_.reset();
@@ -255,10 +255,7 @@ void SolverActor::DropRounds() {
     DropFinish();
 }
 
-bool SolverActor::FinishesRounds() const {
-    return config_.finish_after_rounds > 0 &&
-           config_.finish_after_rounds <= config_.rounds.max_rounds;
-}
+bool SolverActor::FinishesRounds() const { return config_.finish_after_rounds > 0; }
 
 const certify::RoundBoundary& SolverActor::Boundary() {
     if (!boundary_) boundary_ = certify::BoundaryOf(state_, config_.rounds.overlap_depth);

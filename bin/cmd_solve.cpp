@@ -36,6 +36,7 @@ struct SolveOptions {
     std::string eigensolver;  ///< empty: the certifier's default (lobpcg)
     int overlap = -1;         ///< --distributed: solver.rounds_overlap; -1: its default
     int finish_after = -1;    ///< --distributed: solver.finish_after_rounds; -1: its default
+    int max_rounds = -1;      ///< --distributed: solver.rounds_max; -1: its default
     double timeout_s = 600.0;
     double max_relative_bound = certify::CertificateConfig{}.max_relative_bound;
 };
@@ -169,9 +170,14 @@ void AddOptions(CLI::App& app, SolveOptions& o) {
                    "poses within this many edges (solver.rounds_overlap; 0: own poses only)")
         ->check(CLI::Range(0, 16));
     app.add_option("--finish-after-rounds", o.finish_after,
-                   "--distributed: rounds that did not converge in this many hand the team to its "
-                   "second-order finish (solver.finish_after_rounds, default 50; 0: none)")
+                   "--distributed: from this round on, rounds too slow to converge in "
+                   "--max-rounds hand the team to its second-order finish "
+                   "(solver.finish_after_rounds, default 50; 0: none)")
         ->check(CLI::Range(0, 1000000));
+    app.add_option("--max-rounds", o.max_rounds,
+                   "--distributed: rounds at most, then the finish (solver.rounds_max, default "
+                   "1000)")
+        ->check(CLI::Range(1, 1000000));
     app.add_option("--timeout", o.timeout_s, "--distributed: give up after this many seconds")
         ->check(CLI::PositiveNumber);
 }
@@ -189,10 +195,10 @@ int CheckOptionCombinations(const SolveOptions& o) {
                      "--rank or --out\n");
         return kExitUsage;
     }
-    if (!o.distributed && (o.overlap >= 0 || o.finish_after >= 0)) {
+    if (!o.distributed && (o.overlap >= 0 || o.finish_after >= 0 || o.max_rounds > 0)) {
         std::fprintf(stderr,
-                     "certislam solve: error: --overlap and --finish-after-rounds need "
-                     "--distributed\n");
+                     "certislam solve: error: --overlap, --finish-after-rounds and --max-rounds "
+                     "need --distributed\n");
         return kExitUsage;
     }
     if (!o.distributed && !o.eigensolver.empty()) {
@@ -234,6 +240,7 @@ int RunSolve(int argc, char** argv) {
         if (!o.eigensolver.empty()) d.eigensolver = o.eigensolver;
         d.overlap = o.overlap;
         d.finish_after = o.finish_after;
+        d.max_rounds = o.max_rounds;
         return RunDistributedSolve(graph, d);
     }
     certify::PoseGraphSolverConfig config;

@@ -81,6 +81,7 @@ int RunDistributedSolve(const slam::PoseGraph& graph, const DistributedSolveOpti
     config.certifier.certificate.max_relative_bound = o.max_relative_bound;
     if (o.overlap >= 0) config.solver.rounds.overlap_depth = o.overlap;
     if (o.finish_after >= 0) config.solver.finish_after_rounds = o.finish_after;
+    if (o.max_rounds > 0) config.solver.rounds.max_rounds = o.max_rounds;
     config.certifier.lanczos.method = o.eigensolver == "lanczos"
                                           ? certify::LanczosSettings::Method::kLanczos
                                           : certify::LanczosSettings::Method::kLobpcg;

@@ -26,6 +26,7 @@ struct DistributedSolveOptions {
     int overlap = -1;
     /// Rounds before the team's finish (solver.finish_after_rounds); -1: the default.
     int finish_after = -1;
+    int max_rounds = -1;  ///< rounds at most (solver.rounds_max); -1: the default
 };
 
 /// Adds the file's fields to the team's report `j` (of `result`) and prints it (JSON or text);

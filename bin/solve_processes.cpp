@@ -121,6 +121,7 @@ nlohmann::json TeamConfigOf(const DistributedSolveOptions& o, const slam::Partit
     config["certifier"]["eigensolver"] = o.eigensolver;
     if (o.overlap >= 0) config["solver"]["rounds_overlap"] = o.overlap;
     if (o.finish_after >= 0) config["solver"]["finish_after_rounds"] = o.finish_after;
+    if (o.max_rounds > 0) config["solver"]["rounds_max"] = o.max_rounds;
     config["source"] = {{"kind", "pose_graph"}, {"graph", fs::absolute(o.file).string()}};
     for (int k = 0; k < robots; ++k) {
         config["source"]["ranges"][std::to_string(k)] = {{"begin", partition.begin[k]},

@@ -192,9 +192,15 @@ std::vector<ConfigKey> SolverKeys() {
             "solver.finish_after_rounds",
             [](TeamConfig & c, int) -> auto& { return c.node.solver.finish_after_rounds; },
             {0.0, 1e6},
-            "solver.mode rounds: rounds that did not converge in this many hand the team to its "
-            "second-order finish (a distributed trust region on the whole X: neighbour exchanges "
-            "and sums only); 0: none (asynchronous updates after 1000 rounds)"),
+            "solver.mode rounds: from this round on, rounds whose rate over the last 20 projects "
+            "their tolerance beyond solver.rounds_max, and rounds that reach it, hand the team to "
+            "its second-order finish (a distributed trust region on the whole X: neighbour "
+            "exchanges and sums only); 0: none (asynchronous updates after solver.rounds_max)"),
+        Num<int>(
+            "solver.rounds_max",
+            [](TeamConfig & c, int) -> auto& { return c.node.solver.rounds.max_rounds; },
+            {1.0, 1e6},
+            "solver.mode rounds: rounds at most, then the finish (or asynchronous updates)"),
         Num<int>(
             "solver.finish_overlap",
             [](TeamConfig & c, int) -> auto& { return c.node.solver.finish.overlap; }, {0.0, 8.0},

@@ -85,6 +85,7 @@ actors::PoseGraphNodeConfig PoseGraphNodeConfigFrom(const actors::RobotNodeConfi
     pose_graph.solver.async_until_final = false;
     pose_graph.solver.rounds = actors::PoseGraphNodeConfig{}.solver.rounds;
     pose_graph.solver.rounds.overlap_depth = node.solver.rounds.overlap_depth;
+    pose_graph.solver.rounds.max_rounds = node.solver.rounds.max_rounds;
     pose_graph.certifier = node.certifier;
     pose_graph.quiet = node.quiet;
     return pose_graph;

@@ -72,7 +72,8 @@ TeamRounds::TeamRounds(int robot, std::vector<int> robots, std::set<int> neighbo
         !(config_.local_tol_factor > 0.0 && config_.local_tol_factor <= 1.0) ||
         !(config_.refine_rel_grad_tol > 0.0 &&
           config_.refine_rel_grad_tol <= config_.rel_grad_tol) ||
-        config_.refine_rounds < 0 || config_.overlap_depth < 0 || config_.overlap_depth > 16) {
+        config_.refine_rounds < 0 || config_.overlap_depth < 0 || config_.overlap_depth > 16 ||
+        config_.hand_over_after < 0) {
         throw std::invalid_argument(
             "TeamRoundsConfig: rel_grad_tol = " + std::to_string(config_.rel_grad_tol) +
             " must be > 0, refine_rel_grad_tol = " + std::to_string(config_.refine_rel_grad_tol) +
@@ -221,7 +222,7 @@ RoundAction TeamRounds::Next() {
         a.neighbours = NeighbourPoses(accepted_, false);
         return a;
     }
-    if (current_ > static_cast<std::uint64_t>(config_.max_rounds)) {
+    if (handed_over_ || current_ > static_cast<std::uint64_t>(config_.max_rounds)) {
         a.kind = RoundAction::Kind::kGaveUp;
         return a;
     }
@@ -305,6 +306,7 @@ void TeamRounds::Decide() {
                 std::min(*within_ + static_cast<std::uint64_t>(config_.refine_rounds), last);
         converged_ = grad <= config_.refine_rel_grad_tol * scale ||
                      (spent && grad <= config_.rel_grad_tol * scale);
+        handed_over_ = !converged_ && RateTooSlow(grad, scale);
         const bool reset = grad_rose && !converged_;  // a last round has no next one to reset
         gamma_ = plain_ || reset ? 1.0 : gamma_next_;
         if (reset) ++restarts_;
@@ -313,11 +315,29 @@ void TeamRounds::Decide() {
         gamma_ = 1.0;
     }
     plain_ = !accept;
+    grads_.push_back(accepted_grad_);  // grads_[k]: after round k
     ++current_;
     evaluated_ = false;
     gamma_next_ = 0.5 * (1.0 + std::sqrt(1.0 + 4.0 * gamma_ * gamma_));
     beta_ = config_.acceleration && !plain_ ? (gamma_ - 1.0) / gamma_next_ : 0.0;
     Prune();
+}
+
+// The gradient fell by `rate` per round over the last kRateWindow rounds (RBCD's tail is linear):
+// at that rate rel_grad_tol comes after max_rounds, or never. Every robot decides it from the
+// same sums.
+bool TeamRounds::RateTooSlow(double grad, double scale) const {
+    if (config_.hand_over_after <= 0 || within_ ||
+        current_ < std::max<std::uint64_t>(config_.hand_over_after, kRateWindow) ||
+        grads_.size() < kRateWindow) {
+        return false;
+    }
+    const double before = grads_[current_ - kRateWindow];
+    const double target = config_.rel_grad_tol * scale;
+    if (!(grad < before) || !(grad > 0.0)) return true;  // no decrease over the window
+    const double per_round = std::log(grad / before) / double(kRateWindow);  // < 0
+    const double remaining = std::log(target / grad) / per_round;
+    return double(current_) + remaining > double(config_.max_rounds);
 }
 
 double TeamRounds::TeamTolerance() const {

@@ -36,6 +36,10 @@ struct TeamRoundsConfig {
     int refine_rounds = 40;
     double local_tol_factor = 0.1;  ///< a block update stops at this * the team tolerance, (0, 1]
     int max_rounds = 1000;  ///< rounds before giving up (the caller goes asynchronous), >= 1
+    /// From this round on, rounds whose linear rate (the team gradient over the last
+    /// kRateWindow rounds) projects rel_grad_tol beyond max_rounds end early (kGaveUp,
+    /// HandedOver()): the caller hands the team to a faster method. 0: never. >= 0.
+    int hand_over_after = 0;
     /// Overlapping sweeps (OverlapSweep): a robot's block update also moves the poses of
     /// later-sweeping neighbours within this many edges of its own, and they go on from there.
     /// 0: each robot its own poses (RBCD). In [0, 16].
@@ -114,8 +118,15 @@ class TeamRounds {
     /// The edges the neighbours sent with their round-0 poses (PoseBlocks::edges; the first
     /// heard from each stays): what an overlapping sweep's domain needs beyond the own edges.
     std::vector<slam::LoopClosure> NeighbourEdges() const;
+    /// The rounds ended early: their rate projected rel_grad_tol beyond max_rounds
+    /// (TeamRoundsConfig::hand_over_after).
+    bool HandedOver() const { return handed_over_; }
+    /// Rounds over which hand_over_after measures the rate.
+    static constexpr std::uint64_t kRateWindow = 20;
 
   private:
+    /// hand_over_after's test at the accepted round current_ with gradient `grad`.
+    bool RateTooSlow(double grad, double scale) const;
     /// True when neighbour j sweeps `round` before this robot: round 0 in id order, later rounds
     /// in colour order.
     bool Earlier(int j, std::uint64_t round) const;
@@ -158,6 +169,8 @@ class TeamRounds {
     std::optional<std::uint64_t> overlap_ended_;  ///< OverlapEndedAt()
     std::optional<std::uint64_t> within_;         ///< first round accepted below rel_grad_tol
     bool converged_ = false;
+    bool handed_over_ = false;
+    std::vector<double> grads_;  ///< the team gradient at the last accepted round, by round
     std::uint64_t swept_ = 0;
     int restarts_ = 0;
 };

@@ -97,11 +97,11 @@ TEST(PoseGraphTeam, ParallelEdgesInFiveRobotsCertifyTheInProcessOptimum) {
     ExpectTeamCertifiesTheOptimum(graph, "smallGrid3D.g2o with parallel edges", 5);
 }
 
-// Rounds cut short after 3 hand the team to its second-order finish (solver.finish_after_rounds):
+// Rounds cut at 3 (solver.rounds_max) hand the team to its second-order finish:
 // the robots' finish messages over inproc take it to the optimum, which the team certifies.
 TEST(PoseGraphTeam, TheFinishAfterThreeRoundsCertifiesTheInProcessOptimum) {
     PoseGraphNodeConfig config;
-    config.solver.finish_after_rounds = 3;
+    config.solver.rounds.max_rounds = 3;
     const PoseGraphTeamResult team =
         ExpectTeamCertifiesTheOptimum(Read("smallGrid3D.g2o"), "smallGrid3D.g2o", 5, config);
     EXPECT_EQ(team.finish_status, "converged");

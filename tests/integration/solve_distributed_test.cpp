@@ -239,23 +239,24 @@ TEST(SolveDistributed, OverlappingSweepsCertifyTheOptimumInFewerIterations) {
     const ShellResult alone =
         Shell(std::string(CERTISLAM_BINARY) + " solve " + file + " --overlap 2 2>&1");
     EXPECT_EQ(alone.exit_code, 2) << alone.out;
-    EXPECT_NE(alone.out.find("--overlap and --finish-after-rounds need --distributed"),
-              std::string::npos)
+    EXPECT_NE(
+        alone.out.find("--overlap, --finish-after-rounds and --max-rounds need --distributed"),
+        std::string::npos)
         << alone.out;
 }
 
-// Rounds cut short after 3 hand the team to its second-order finish: its exchanges and sums cross
-// between robot processes over tcp, and the team certifies the in-process optimum; every robot
-// process's counters are merged into the report.
+// Rounds cut at 3 (--max-rounds) hand the team to its second-order finish: its exchanges and sums
+// cross between robot processes over tcp, and the team certifies the in-process optimum; every
+// robot process's counters are merged into the report.
 TEST(SolveDistributed, TheFinishAfterThreeRoundsCertifiesOverTcp) {
     const std::string file = G2oPath("smallGrid3D.g2o");
     const auto central = Json("solve " + file + " --robots 1 --quiet");
     const auto team = Json("solve " + file +
-                           " --robots 3 --distributed --timeout 120 --finish-after-rounds 3 "
+                           " --robots 3 --distributed --timeout 120 --max-rounds 3 "
                            "--transport tcp");
     ASSERT_FALSE(team.is_discarded());
     EXPECT_EQ(team["verdict"], "certified");
-    EXPECT_EQ(team["finish_after_rounds"].get<int>(), 3);
+    EXPECT_EQ(team["finish_after_rounds"].get<int>(), 50);
     EXPECT_LE(RelDiff(team["cost"].get<double>(), central["cost"].get<double>()), kRelCost);
     EXPECT_EQ(team["solver_mode"], "synchronous");
     const auto& finish = team["finish"];

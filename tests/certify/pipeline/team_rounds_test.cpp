@@ -107,6 +107,48 @@ TEST(TeamRounds, SpentRefinementEndsOnlyWithinTheFirstOrderTolerance) {
     EXPECT_EQ(converged_at, 6u);
 }
 
+/// Runs one robot's rounds on a gradient that falls by `rate` per round from 1 (f = 100 - round):
+/// the round of the kGaveUp, and whether the rounds handed over (0: converged or never ended).
+std::pair<std::uint64_t, bool> EndOfLinearRounds(const TeamRoundsConfig& config, double rate) {
+    TeamRounds rounds(0, {0}, {}, config);
+    const Eigen::MatrixXd block = Eigen::MatrixXd::Zero(3, 4);
+    for (int step = 0; step < 20000; ++step) {
+        const RoundAction a = rounds.Next();
+        using K = RoundAction::Kind;
+        if (a.kind == K::kAlign || a.kind == K::kSweep) {
+            rounds.SweepDone(a.round, block);
+        } else if (a.kind == K::kEvaluate) {
+            const double r = static_cast<double>(a.round);
+            rounds.OnSums(0, a.round, 100.0 - 1e-3 * r, std::pow(rate, r));
+        } else if (a.kind == K::kGaveUp) {
+            return {rounds.Rounds(), rounds.HandedOver()};
+        } else {
+            return {0, false};
+        }
+    }
+    return {0, false};
+}
+
+// From hand_over_after on, rounds whose linear rate reaches rel_grad_tol (1e-8 f, f about 100:
+// a gradient of 1e-6) only after max_rounds end at once; rounds fast enough go on and converge.
+TEST(TeamRounds, RoundsTooSlowForMaxRoundsHandOver) {
+    TeamRoundsConfig config;
+    config.acceleration = false;
+    config.max_rounds = 1000;
+    config.hand_over_after = 50;
+    // 0.99 per round: 1e-6 after 1375 rounds; handed over at the first round allowed.
+    const auto slow = EndOfLinearRounds(config, 0.99);
+    EXPECT_TRUE(slow.second);
+    EXPECT_EQ(slow.first, 50u);
+    // 0.97 per round: 1e-6 after 454 rounds, inside max_rounds.
+    EXPECT_EQ(EndOfLinearRounds(config, 0.97), std::make_pair(std::uint64_t{0}, false));
+    // Without hand_over_after the slow rounds run to max_rounds.
+    config.hand_over_after = 0;
+    const auto capped = EndOfLinearRounds(config, 0.99);
+    EXPECT_FALSE(capped.second);
+    EXPECT_EQ(capped.first, 1000u);
+}
+
 TEST(TeamRounds, RefusesABadConfiguration) {
     TeamRoundsConfig bad;
     bad.max_rounds = 0;

@@ -193,7 +193,8 @@ std::vector<ConfigKey> SolverKeys() {
             [](TeamConfig & c, int) -> auto& { return c.node.solver.finish_after_rounds; },
             {0.0, 1e6},
             "solver.mode rounds: from this round on, rounds whose rate over the last 20 projects "
-            "their tolerance beyond solver.rounds_max, and rounds that reach it, hand the team to "
+            "their tolerance beyond 4 solver.rounds_max, and rounds that reach it, hand the team "
+            "to "
             "its second-order finish (a distributed trust region on the whole X: neighbour "
             "exchanges and sums only); 0: none (asynchronous updates after solver.rounds_max)"),
         Num<int>(

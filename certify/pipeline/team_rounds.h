@@ -36,8 +36,8 @@ struct TeamRoundsConfig {
     int refine_rounds = 40;
     double local_tol_factor = 0.1;  ///< a block update stops at this * the team tolerance, (0, 1]
     int max_rounds = 1000;  ///< rounds before giving up (the caller goes asynchronous), >= 1
-    /// From this round on, rounds whose linear rate (the team gradient over the last
-    /// kRateWindow rounds) projects rel_grad_tol beyond max_rounds end early (kGaveUp,
+    /// From this round on, rounds whose linear rate (the team gradient's low over the last
+    /// kRateWindow rounds) projects rel_grad_tol beyond kHopeless max_rounds end early (kGaveUp,
     /// HandedOver()): the caller hands the team to a faster method. 0: never. >= 0.
     int hand_over_after = 0;
     /// Overlapping sweeps (OverlapSweep): a robot's block update also moves the poses of
@@ -123,6 +123,8 @@ class TeamRounds {
     bool HandedOver() const { return handed_over_; }
     /// Rounds over which hand_over_after measures the rate.
     static constexpr std::uint64_t kRateWindow = 20;
+    /// ... and how far beyond max_rounds that rate must project rel_grad_tol.
+    static constexpr double kHopeless = 4.0;
 
   private:
     /// hand_over_after's test at the accepted round current_ with gradient `grad`.
@@ -170,7 +172,7 @@ class TeamRounds {
     std::optional<std::uint64_t> within_;         ///< first round accepted below rel_grad_tol
     bool converged_ = false;
     bool handed_over_ = false;
-    std::vector<double> grads_;  ///< the team gradient at the last accepted round, by round
+    std::vector<double> best_grads_;  ///< the smallest accepted team gradient, after each round
     std::uint64_t swept_ = 0;
     int restarts_ = 0;
 };

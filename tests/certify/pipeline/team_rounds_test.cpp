@@ -130,23 +130,22 @@ std::pair<std::uint64_t, bool> EndOfLinearRounds(const TeamRoundsConfig& config,
 }
 
 // From hand_over_after on, rounds whose linear rate reaches rel_grad_tol (1e-8 f, f about 100:
-// a gradient of 1e-6) only after max_rounds end at once; rounds fast enough go on and converge.
+// a gradient of 1e-6) only after kHopeless (4) max_rounds end at once; slower ones within that
+// margin run to max_rounds, fast ones converge.
 TEST(TeamRounds, RoundsTooSlowForMaxRoundsHandOver) {
     TeamRoundsConfig config;
     config.acceleration = false;
     config.max_rounds = 1000;
     config.hand_over_after = 50;
-    // 0.99 per round: 1e-6 after 1375 rounds; handed over at the first round allowed.
-    const auto slow = EndOfLinearRounds(config, 0.99);
-    EXPECT_TRUE(slow.second);
-    EXPECT_EQ(slow.first, 50u);
-    // 0.97 per round: 1e-6 after 454 rounds, inside max_rounds.
+    // 0.999 per round: 1e-6 after 13809 rounds; handed over at the first round allowed.
+    EXPECT_EQ(EndOfLinearRounds(config, 0.999), std::make_pair(std::uint64_t{50}, true));
+    // 0.99 per round: after 1375 rounds, within the margin: the rounds run to max_rounds.
+    EXPECT_EQ(EndOfLinearRounds(config, 0.99), std::make_pair(std::uint64_t{1000}, false));
+    // 0.97 per round: after 454 rounds, inside max_rounds: converged.
     EXPECT_EQ(EndOfLinearRounds(config, 0.97), std::make_pair(std::uint64_t{0}, false));
-    // Without hand_over_after the slow rounds run to max_rounds.
+    // Without hand_over_after the hopeless rounds run to max_rounds too.
     config.hand_over_after = 0;
-    const auto capped = EndOfLinearRounds(config, 0.99);
-    EXPECT_FALSE(capped.second);
-    EXPECT_EQ(capped.first, 1000u);
+    EXPECT_EQ(EndOfLinearRounds(config, 0.999), std::make_pair(std::uint64_t{1000}, false));
 }
 
 TEST(TeamRounds, RefusesABadConfiguration) {

@@ -136,6 +136,7 @@ void SolverActor::EndFinish() {
     state_.SetNeighbourPoses(finish_->NeighbourPoses());
     state_.SetOwnBlock(finish_->Block());
     finish_.reset();
+    early_finish_.clear();  // of this finish: a new one needs a new session or level
     ++steps_;
     grad_norm_ = state_.Evaluate().grad_norm;
     overlap_.reset();

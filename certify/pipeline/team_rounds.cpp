@@ -326,9 +326,8 @@ void TeamRounds::Decide() {
 }
 
 // The gradient's low fell at a rate over the last kRateWindow rounds (RBCD's tail is linear) at
-// which rel_grad_tol comes after kHopeless * max_rounds, or never (the rate of accelerated rounds
-// varies: kitti_00's projection swings between 200 and 1200 rounds, and it converges by 460;
-// parking-garage's grows past 4000 near round 160). Every robot decides it from the same sums.
+// which rel_grad_tol comes after kHopeless * max_rounds, or never. The low, not the last value:
+// accelerated rounds are not monotone. Every robot decides it from the same sums.
 bool TeamRounds::RateTooSlow(double grad, double scale) const {
     if (config_.hand_over_after <= 0 || within_ ||
         current_ < std::max<std::uint64_t>(config_.hand_over_after, kRateWindow) ||

@@ -187,7 +187,7 @@ TEST(SolverActor, UnreachableRefinementEndsAtTheConfiguredTolerance) {
 // sends its bundle to the new reader at once, not at the heartbeat's re-send. Re-sends of an
 // unchanged bundle are >= kFirstResend (1 s) apart, so a watching reader that sees the next
 // bundle sooner than that after a new reader subscribed saw the prompt one, however loaded
-// the machine is (a fixed window from the subscription was not: CI missed 300 ms once).
+// the machine is.
 TEST(SolverActor, ANewBundleReaderGetsTheBundleWithoutWaitingForTheResend) {
     constexpr auto kResend = std::chrono::milliseconds(1000);  // SolverActor::kFirstResend
     constexpr int kReaders = 2;

@@ -30,7 +30,17 @@ void NodeActor::On(const std::string& type_name, TypedHandler handler) {
 
 bool NodeActor::Send(transport::Endpoint& endpoint, const transport::Message& message,
                      bool to_peers) {
-    const auto status = endpoint.Send(message);
+    return Sent(endpoint.Send(message), message, to_peers);
+}
+
+bool NodeActor::SendToRobot(transport::Endpoint& endpoint, int robot,
+                            const transport::Message& message, bool to_peers) {
+    return Sent(endpoint.SendToRobot(static_cast<std::uint32_t>(robot), message), message,
+                to_peers);
+}
+
+bool NodeActor::Sent(transport::SendStatus status, const transport::Message& message,
+                     bool to_peers) {
     if (status != transport::SendStatus::kSent) {
         CountQueueFull();
         return false;

@@ -38,6 +38,9 @@ class NodeActor : public Actor {
     void On(const std::string& type_name, TypedHandler handler);
     /// Sends; counts bytes when the endpoint's edge crosses to other robots (`to_peers`).
     bool Send(transport::Endpoint& endpoint, const transport::Message& message, bool to_peers);
+    /// Sends on a publisher to robot `robot`'s subscribers only; counts bytes as Send does.
+    bool SendToRobot(transport::Endpoint& endpoint, int robot, const transport::Message& message,
+                     bool to_peers);
     /// Adds bytes sent to other robots by other means than Send().
     void CountPeerBytes(std::uint64_t bytes) { bytes_to_peers_.fetch_add(bytes); }
     /// Closes every endpoint (call from OnStop()).
@@ -50,6 +53,7 @@ class NodeActor : public Actor {
 
   private:
     void Dispatch(transport::Message& message);
+    bool Sent(transport::SendStatus status, const transport::Message& message, bool to_peers);
 
     TeamWiring wiring_;
     std::vector<std::unique_ptr<transport::Endpoint>> endpoints_;

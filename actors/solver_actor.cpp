@@ -428,7 +428,9 @@ SolverActor::SnapshotKey SolverActor::KeyOfSnapshot() const {
             state_.StaircaseLevel(),
             grad_norm_,
             changed_,
-            finish_ ? finish_->Progress().exchanges : 0};
+            // Per trust-region step, not per exchange: a snapshot rounds the whole trajectory,
+            // and the finish exchanges every few milliseconds without changing it.
+            finish_ ? std::uint64_t(finish_->Progress().iterations) : 0};
 }
 
 void SolverActor::UpdateSnapshot() {

@@ -183,7 +183,8 @@ class SolverActor final : public NodeActor {
     void Publish();
     bool PublishDue() const;  ///< publish_period passed, or the graph final or settled
     void UpdateSnapshot();
-    /// What a snapshot shows that a tick can change (the rest changes with the graph, `changed_`).
+    /// What a snapshot shows that a tick can change (the rest changes with the graph, `changed_`);
+    /// a running finish's counters show at each of its trust-region steps.
     using SnapshotKey =
         std::tuple<std::uint64_t, std::uint64_t, std::uint64_t, bool, bool, bool, bool, bool, int,
                    double, std::chrono::steady_clock::time_point, std::uint64_t>;
@@ -267,6 +268,7 @@ class SolverActor final : public NodeActor {
 
     std::optional<certify::TeamFinish> finish_;  ///< running, after the rounds gave up
     int finish_level_ = -1;                      ///< staircase level finish_ belongs to
+    std::chrono::steady_clock::time_point finish_began_;  ///< of finish_
     std::vector<FinishBody> early_finish_;       ///< finish messages heard before finish_ began
     /// Early finish messages kept per robot of the team at most (a peer is a few exchanges ahead
     /// at most: it waits for this robot's); beyond: dropped and counted.

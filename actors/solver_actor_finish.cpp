@@ -45,6 +45,7 @@ void SolverActor::StartFinish() {
     finish_.emplace(RobotId(), Wiring().robots, state_.FullBlock(steps_).blocks,
                     certify::EdgesTouching(state_), config_.finish);
     finish_level_ = state_.StaircaseLevel();
+    finish_began_ = std::chrono::steady_clock::now();
     finish_status_ = StatusName(finish_->status());
     std::fprintf(stderr, "solver %d: rounds did not converge in %d: the team's finish\n", RobotId(),
                  config_.finish_after_rounds);
@@ -100,11 +101,16 @@ void SolverActor::FeedFinish(const FinishBody& body) {
 }
 
 void SolverActor::PumpFinish() {
+    // Edges and vectors go to their one neighbour (the poses stream's robot topic), sums to all.
     const auto send = [this](v1::FinishMessage proto) {
         *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
         proto.set_staircase_level(static_cast<std::uint32_t>(finish_level_));
         StampSession(&proto);
-        Send(*poses_out_, transport::Pack(proto), true);
+        if (proto.kind() == v1::FinishMessage::KIND_SUMS) {
+            Send(*poses_out_, transport::Pack(proto), true);
+        } else {
+            SendToRobot(*poses_out_, int(proto.to_robot()), transport::Pack(proto), true);
+        }
     };
     for (bool moved = true; moved && finish_;) {
         moved = false;
@@ -131,6 +137,11 @@ void SolverActor::PumpFinish() {
 void SolverActor::EndFinish() {
     const auto status = finish_->status();
     finish_status_ = StatusName(status);
+    const auto& p = finish_->Progress();
+    std::fprintf(stderr, "solver %d: the team's finish %s: %d trust-region steps, %d CG in %.2f s\n",
+                 RobotId(), finish_status_.c_str(), p.iterations, p.tcg_iterations,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - finish_began_)
+                     .count());
     Add(finish_->Progress(), &finish_before_);
     ++finishes_;
     state_.SetNeighbourPoses(finish_->NeighbourPoses());
@@ -147,8 +158,7 @@ void SolverActor::EndFinish() {
         rounds_converged_ = true;
         local_ok_ = true;
     } else {
-        std::fprintf(stderr, "solver %d: the team's finish ended %s: asynchronous updates\n",
-                     RobotId(), finish_status_.c_str());
+        std::fprintf(stderr, "solver %d: asynchronous updates from the finish's X\n", RobotId());
         rounds_gave_up_ = true;
         local_ok_ = false;
     }

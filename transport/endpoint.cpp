@@ -3,7 +3,9 @@
 #include "transport/endpoint.h"
 
 #include <algorithm>
+#include <cstring>
 #include <iterator>
+#include <stdexcept>
 #include <zmq_addon.hpp>
 
 #include "certislam/v1/control.pb.h"
@@ -37,6 +39,13 @@ int ClampInt(std::size_t value) {
 }
 
 }  // namespace
+
+std::string RobotTopic(std::uint32_t robot) {
+    std::string topic(1, 'R');
+    topic += std::to_string(robot);
+    topic += '.';
+    return topic;
+}
 
 Endpoint::Endpoint(zmq::context_t& context, EndpointConfig config)
     : config_(std::move(config)), socket_(context, SocketType(config_.role)) {
@@ -87,7 +96,8 @@ void Endpoint::Configure() {
             socket_.set(zmq::sockopt::xpub_nodrop, 1);   // full queue: EAGAIN, counted, not silent
             break;
         case Role::kSubscriber:
-            socket_.set(zmq::sockopt::subscribe, "");
+            socket_.set(zmq::sockopt::subscribe, kBroadcastTopic);
+            socket_.set(zmq::sockopt::subscribe, RobotTopic(config_.robot_id));
             break;
         case Role::kRouter:
             socket_.set(zmq::sockopt::router_mandatory, 1);
@@ -135,12 +145,22 @@ SendStatus Endpoint::SendTo(std::string_view peer, const Message& message) {
     return SendMessage(&id, message);
 }
 
-SendStatus Endpoint::SendMessage(const std::string* peer, const Message& message) {
+SendStatus Endpoint::SendToRobot(std::uint32_t robot, const Message& message) {
+    if (config_.role != Role::kPublisher)
+        throw std::logic_error("Endpoint::SendToRobot: " + config_.edge + " is not a publisher");
+    Pump();  // take in subscriptions first
+    const std::string topic = RobotTopic(robot);
+    return SendMessage(nullptr, message, &topic);
+}
+
+SendStatus Endpoint::SendMessage(const std::string* peer, const Message& message,
+                                 const std::string* topic) {
     // A publisher lends one reference per subscriber; the other roles deliver to one peer.
-    const int readers = config_.role == Role::kPublisher ? ClampInt(subscribers_) : 1;
+    const bool publisher = config_.role == Role::kPublisher;
+    const int readers = publisher ? ClampInt(subscribers_) : 1;
     ShmLoans loans;
     std::optional<Message> wire;
-    if (shm_lender_ != nullptr && readers > 0 && shm_lender_->Wants(message)) {
+    if (shm_lender_ != nullptr && readers > 0 && topic == nullptr && shm_lender_->Wants(message)) {
         wire = message;  // the envelope and frame handles; the bytes are not copied here
         ShmLendStats stats;
         shm_lender_->Lend(*wire, readers, loans, stats);
@@ -151,6 +171,11 @@ SendStatus Endpoint::SendMessage(const std::string* peer, const Message& message
     }
     std::vector<zmq::message_t> frames;
     if (peer != nullptr) frames.emplace_back(peer->data(), peer->size());
+    if (publisher) {
+        const std::string_view t =
+            topic != nullptr ? std::string_view(*topic) : std::string_view(kBroadcastTopic);
+        frames.emplace_back(t.data(), t.size());
+    }
     auto body = Encode(wire ? *wire : message);
     std::move(body.begin(), body.end(), std::back_inserter(frames));
     const SendStatus status = SendFrames(std::move(frames));
@@ -237,6 +262,15 @@ void Endpoint::HandleFrames(std::vector<zmq::message_t>&& frames) {
     if (config_.curve && !frames.empty()) {
         if (const char* user = zmq_msg_gets(frames.front().handle(), "User-Id")) user_id = user;
     }
+    if (config_.role == Role::kSubscriber) {  // the topic frame: broadcast or this robot's
+        const std::string topic = frames.empty() ? std::string() : frames.front().to_string();
+        if (frames.size() < 2 ||
+            (topic != kBroadcastTopic && topic != RobotTopic(config_.robot_id))) {
+            counters_.dropped_malformed.fetch_add(1);
+            return;
+        }
+        frames.erase(frames.begin());
+    }
     DecodeResult result = Decode(std::move(frames), config_.limits);
     if (result.status == DecodeResult::Status::kUnsupportedVersion) {
         counters_.dropped_version.fetch_add(1);
@@ -274,13 +308,18 @@ bool Endpoint::ResolveShm(Message& message) {
 }
 
 void Endpoint::HandleSubscription(const zmq::message_t& frame) {
-    if (frame.size() == 0) return;
+    // A subscriber's broadcast subscription is its hello (its robot topic comes with it).
+    if (frame.size() != 1 + std::strlen(kBroadcastTopic) ||
+        std::memcmp(static_cast<const char*>(frame.data()) + 1, kBroadcastTopic,
+                    std::strlen(kBroadcastTopic)) != 0) {
+        return;
+    }
     const auto kind = static_cast<const std::uint8_t*>(frame.data())[0];
     if (kind == 1) {
         ++subscribers_;
         ready_ = true;
         counters_.control_received.fetch_add(1);
-        SendFrames(Encode(MakeControl(0, false)));  // the subscriber's WaitReady takes it
+        SendMessage(nullptr, MakeControl(0, false));  // the subscriber's WaitReady takes it
     } else if (kind == 0 && subscribers_ > 0) {
         --subscribers_;
     }

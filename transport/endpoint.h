@@ -47,6 +47,14 @@ enum class SendStatus {
     kUnroutable,    ///< ROUTER: no connected peer has that routing id
 };
 
+/// A publisher's messages travel behind a topic frame, which ZeroMQ filters at the publisher:
+/// every subscriber subscribes to the broadcast topic and to its own robot's, so a message for
+/// one robot (Endpoint::SendToRobot) is never sent to the others.
+inline constexpr char kBroadcastTopic[] = "B";
+/// The topic of the subscribers of robot `robot` ("R<robot>.": no robot's is a prefix of
+/// another's).
+std::string RobotTopic(std::uint32_t robot);
+
 /// One socket of a logical edge. Owns the socket (linger 0); one thread uses it at a time.
 /// For a mailbox: zmq_poll on handle() for ZMQ_POLLIN, then call Receive() until it returns
 /// nullopt (the endpoint keeps a bounded queue of its own, which zmq_poll does not see).
@@ -63,6 +71,9 @@ class Endpoint {
     SendStatus Send(const Message& message);
     /// Sends a message to one peer of a ROUTER (peer = Message::peer of one of its messages).
     SendStatus SendTo(std::string_view peer, const Message& message);
+    /// Publisher: sends a message to robot `robot`'s subscribers only (none other receives its
+    /// bytes). Its frames go inline, never through shm (the readers are not counted).
+    SendStatus SendToRobot(std::uint32_t robot, const Message& message);
 
     /// A buffer for the producer to fill and Seal() into a frame of a message to send here. On
     /// an edge that uses shared memory (EndpointConfig::UsesShm) and for at least
@@ -119,7 +130,8 @@ class Endpoint {
     bool HandleControl(const Message& message);
     void Enqueue(Message&& message);
     SendStatus SendFrames(std::vector<zmq::message_t>&& frames);
-    SendStatus SendMessage(const std::string* peer, const Message& message);
+    SendStatus SendMessage(const std::string* peer, const Message& message,
+                           const std::string* topic = nullptr);
     bool ResolveShm(Message& message);
     Message MakeControl(std::uint64_t nonce, bool hello) const;
 

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <stdexcept>
+
 #include <thread>
 
 #include "certislam/v1/control.pb.h"
@@ -43,6 +45,46 @@ TEST_P(EndpointOverEachTransport, StreamStartsAfterHandshakeAndDeliversEveryMess
     EXPECT_EQ(counters.received, static_cast<std::uint64_t>(kCount));
     EXPECT_EQ(counters.dropped_queue_full + counters.dropped_malformed, 0u);
     EXPECT_EQ(publisher.counters().sent, static_cast<std::uint64_t>(kCount) + 1);  // + Ready
+}
+
+// A message for one robot reaches only that robot's subscriber; a broadcast reaches both; the
+// publisher counts each subscriber once (its robot topic is not a second hello).
+TEST_P(EndpointOverEachTransport, MessageForOneRobotReachesOnlyThatRobotsSubscriber) {
+    Endpoint publisher(context_, Config(Role::kPublisher, address(), true));
+    auto config_of = [&](std::uint32_t robot) {
+        auto c = Config(Role::kSubscriber, publisher.bound_addresses()[0], false);
+        c.robot_id = robot;
+        return c;
+    };
+    Endpoint robot2(context_, config_of(2));
+    Endpoint robot12(context_, config_of(12));  // "R1" would be a prefix of "R12": not a topic
+    Endpoint robot1(context_, config_of(1));
+    ASSERT_TRUE(publisher.WaitForSubscribers(3, kTimeout));
+    ASSERT_TRUE(robot2.WaitReady(kTimeout) && robot12.WaitReady(kTimeout) &&
+                robot1.WaitReady(kTimeout));
+    EXPECT_EQ(publisher.subscribers(), 3u);
+    ASSERT_EQ(publisher.SendToRobot(1, TestMessage(1)), SendStatus::kSent);
+    ASSERT_EQ(publisher.SendToRobot(2, TestMessage(2)), SendStatus::kSent);
+    ASSERT_EQ(publisher.SendToRobot(7, TestMessage(7)), SendStatus::kSent);  // nobody's
+    ASSERT_EQ(publisher.Send(TestMessage(100)), SendStatus::kSent);
+    // Each stream is in order, so the broadcast arriving last proves nothing else is on its way.
+    auto sequences = [](Endpoint& e) {
+        std::vector<std::uint64_t> out;
+        while (auto m = e.Receive(kTimeout)) {
+            out.push_back(m->envelope.header().sequence());
+            if (out.back() == 100) break;
+        }
+        return out;
+    };
+    EXPECT_EQ(sequences(robot1), (std::vector<std::uint64_t>{1, 100}));
+    EXPECT_EQ(sequences(robot2), (std::vector<std::uint64_t>{2, 100}));
+    EXPECT_EQ(sequences(robot12), (std::vector<std::uint64_t>{100}));
+    for (Endpoint* e : {&robot1, &robot2, &robot12}) {
+        EXPECT_FALSE(e->Receive().has_value());
+        EXPECT_EQ(e->counters().dropped_malformed, 0u);
+    }
+    Endpoint push(context_, Config(Role::kPush, address(), true));
+    EXPECT_THROW(push.SendToRobot(1, TestMessage(1)), std::logic_error);
 }
 
 TEST_P(EndpointOverEachTransport, DealerHandshakeThenRouterRepliesToTheRightPeer) {

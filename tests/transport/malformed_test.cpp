@@ -17,7 +17,10 @@ using testing::TestMessage;
 
 constexpr std::chrono::milliseconds kTimeout{5000};
 
-void SendRaw(zmq::socket_t& socket, std::vector<zmq::message_t>&& frames) {
+// Sends `frames`, behind a topic frame when `topic` is set (what a publisher's readers expect).
+void SendRaw(zmq::socket_t& socket, std::vector<zmq::message_t>&& frames,
+             const char* topic = nullptr) {
+    if (topic != nullptr) frames.insert(frames.begin(), zmq::message_t(std::string(topic)));
     ASSERT_TRUE(zmq::send_multipart(socket, frames).has_value());
 }
 
@@ -33,32 +36,33 @@ struct BadBatch {
     int version = 0;
 };
 
-BadBatch SendBadBatch(zmq::socket_t& raw, std::uint64_t valid_sequence) {
+BadBatch SendBadBatch(zmq::socket_t& raw, std::uint64_t valid_sequence,
+                      const char* topic = nullptr) {
     BadBatch batch;
     const std::vector<std::byte> cloud(4096);
     const Message good = TestMessage(7, 1, {SharedBuffer::Copy(cloud.data(), cloud.size())});
     const std::string envelope = Encode(good)[0].to_string();
 
-    SendRaw(raw, Frames({envelope.substr(0, envelope.size() / 2), std::string(4096, 'c')}));
+    SendRaw(raw, Frames({envelope.substr(0, envelope.size() / 2), std::string(4096, 'c')}), topic);
     ++batch.malformed;  // truncated envelope
-    SendRaw(raw, Frames({envelope}));
+    SendRaw(raw, Frames({envelope}), topic);
     ++batch.malformed;  // frame missing
-    SendRaw(raw, Frames({envelope, std::string(4096, 'c'), std::string(4096, 'c')}));
+    SendRaw(raw, Frames({envelope, std::string(4096, 'c'), std::string(4096, 'c')}), topic);
     ++batch.malformed;  // frame extra
-    SendRaw(raw, Frames({envelope, std::string(100, 'c')}));
+    SendRaw(raw, Frames({envelope, std::string(100, 'c')}), topic);
     ++batch.malformed;  // frame shorter than declared
     std::mt19937 rng(11);
     for (int i = 0; i < 20; ++i) {
         std::string garbage(1 + i * 13, '\0');
         for (auto& c : garbage) c = static_cast<char>(rng());
-        SendRaw(raw, Frames({garbage}));
+        SendRaw(raw, Frames({garbage}), topic);
         ++batch.malformed;
     }
     Message future = TestMessage(8);
     future.envelope.set_schema_major(kSchemaMajor + 1);
-    SendRaw(raw, Encode(future));
+    SendRaw(raw, Encode(future), topic);
     ++batch.version;
-    SendRaw(raw, Encode(TestMessage(valid_sequence)));
+    SendRaw(raw, Encode(TestMessage(valid_sequence)), topic);
     return batch;
 }
 
@@ -101,20 +105,32 @@ TEST(Malformed, RouterDropsBadMessagesFromADealer) {
     EXPECT_EQ(router.counters().dropped_version, 1u);
 }
 
+// A raw publisher's messages travel behind a topic frame, as an Endpoint's do: the bad batch
+// behind the broadcast topic, and topic frames that only start like a subscribed topic (ZeroMQ
+// matches prefixes) or come alone are dropped and counted too.
 TEST(Malformed, SubscriberDropsBadMessagesFromARawPublisher) {
     zmq::context_t context;
     zmq::socket_t raw(context, zmq::socket_type::xpub);
     raw.set(zmq::sockopt::linger, 0);
     raw.bind("tcp://127.0.0.1:*");
-    Endpoint subscriber(context,
-                        Config(Role::kSubscriber, raw.get(zmq::sockopt::last_endpoint), false));
-    zmq::message_t subscription;  // handshake without sleeps: wait for the subscription
+    auto config = Config(Role::kSubscriber, raw.get(zmq::sockopt::last_endpoint), false);
+    config.robot_id = 3;
+    Endpoint subscriber(context, config);
+    zmq::message_t subscription;  // handshake without sleeps: wait for both subscriptions
     ASSERT_TRUE(raw.recv(subscription).has_value());
-    const BadBatch batch = SendBadBatch(raw, 6);
+    ASSERT_TRUE(raw.recv(subscription).has_value());
+    const std::string envelope = Encode(TestMessage(5))[0].to_string();
+    SendRaw(raw, Frames({"Bx", envelope}));    // starts like the broadcast topic
+    SendRaw(raw, Frames({"R3.1", envelope}));  // starts like robot 3's
+    SendRaw(raw, Frames({"B"}));               // a topic and nothing else
+    constexpr int kTopicDrops = 3;
+    const BadBatch batch = SendBadBatch(raw, 6, kBroadcastTopic);
     const auto message = subscriber.Receive(kTimeout);
     ASSERT_TRUE(message.has_value());
     EXPECT_EQ(message->envelope.header().sequence(), 6u);
-    EXPECT_EQ(subscriber.counters().dropped_malformed, static_cast<std::uint64_t>(batch.malformed));
+    EXPECT_EQ(subscriber.counters().dropped_malformed,
+              static_cast<std::uint64_t>(batch.malformed + kTopicDrops));
+    EXPECT_EQ(subscriber.counters().dropped_version, static_cast<std::uint64_t>(batch.version));
 }
 
 }  // namespace

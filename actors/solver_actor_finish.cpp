@@ -138,10 +138,10 @@ void SolverActor::EndFinish() {
     const auto status = finish_->status();
     finish_status_ = StatusName(status);
     const auto& p = finish_->Progress();
-    std::fprintf(stderr, "solver %d: the team's finish %s: %d trust-region steps, %d CG in %.2f s\n",
-                 RobotId(), finish_status_.c_str(), p.iterations, p.tcg_iterations,
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - finish_began_)
-                     .count());
+    std::fprintf(
+        stderr, "solver %d: the team's finish %s: %d trust-region steps, %d CG in %.2f s\n",
+        RobotId(), finish_status_.c_str(), p.iterations, p.tcg_iterations,
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - finish_began_).count());
     Add(finish_->Progress(), &finish_before_);
     ++finishes_;
     state_.SetNeighbourPoses(finish_->NeighbourPoses());

@@ -61,6 +61,7 @@ struct PoseGraphTeamResult {
     std::uint64_t finish_reductions = 0;
     std::string finish_status;
     std::uint64_t finish_dropped = 0;  ///< finish messages the robots dropped (summed)
+    double finish_seconds = 0.0;       ///< robot 0's wall time in the finish
 };
 
 /// What `nodes` (the anchor first; PoseGraphNode or RobotNode) have done so far: counters summed
@@ -103,6 +104,7 @@ PoseGraphTeamResult SummariseNodes(const std::vector<const Node*>& nodes) {
     out.finish_exchanges = s.finish.exchanges;
     out.finish_reductions = s.finish.reductions;
     out.finish_status = s.finish_status;
+    out.finish_seconds = s.finish_seconds;
     out.fallbacks = anchor.Certifier().Fallbacks();
     out.certificate_rounds = anchor.Certifier().Rounds();
     out.lanczos_steps = anchor.Certifier().LanczosSteps();

@@ -417,17 +417,8 @@ void SolverActor::SendBundle() {
 }
 
 SolverActor::SnapshotKey SolverActor::KeyOfSnapshot() const {
-    return {steps_,
-            rounds_swept_,
-            round_session_,
-            rounds_converged_,
-            rounds_gave_up_,
-            local_ok_,
-            publish_pending_,
-            IsFinal(),
-            state_.StaircaseLevel(),
-            grad_norm_,
-            changed_,
+    return {steps_, rounds_swept_, round_session_, rounds_converged_, rounds_gave_up_, local_ok_,
+            publish_pending_, IsFinal(), state_.StaircaseLevel(), grad_norm_, changed_,
             // Per trust-region step, not per exchange: a snapshot rounds the whole trajectory,
             // and the finish exchanges every few milliseconds without changing it.
             finish_ ? std::uint64_t(finish_->Progress().iterations) : 0};
@@ -479,6 +470,7 @@ void SolverActor::UpdateSnapshot() {
     s.finishes = finishes_;
     s.finish_status = finish_ ? "running" : finish_status_;
     s.finish_dropped = finish_dropped_;
+    s.finish_seconds = FinishSeconds();
     std::lock_guard lock(snapshot_mutex_);
     snapshot_ = std::move(s);
 }

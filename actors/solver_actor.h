@@ -112,6 +112,7 @@ struct SolverSnapshot {
     int finishes = 0;
     std::string finish_status;
     std::uint64_t finish_dropped = 0;  ///< finish messages dropped before or after a finish
+    double finish_seconds = 0.0;       ///< wall time in the finishes (the running one so far)
 };
 
 /// One robot's RBCD solver.
@@ -162,6 +163,7 @@ class SolverActor final : public NodeActor {
     void FeedFinish(const FinishBody& body);
     /// The finish's counters so far, with those of the finishes before.
     certify::TeamFinishProgress FinishTotals() const;
+    double FinishSeconds() const;  ///< wall time in the finishes so far
     /// Ends rounds_ (their counts kept) and its overlapping sweep.
     void DropRounds();
     /// The own poses near the neighbours (certify::BoundaryOf), kept until the graph changes.
@@ -266,14 +268,15 @@ class SolverActor final : public NodeActor {
     std::map<int, std::uint64_t> incarnations_;  ///< robot -> incarnation last heard
     bool chordal_started_ = false;  ///< the first rounds began from the chordal start; later: not
 
-    std::optional<certify::TeamFinish> finish_;  ///< running, after the rounds gave up
-    int finish_level_ = -1;                      ///< staircase level finish_ belongs to
+    std::optional<certify::TeamFinish> finish_;           ///< running, after the rounds gave up
+    int finish_level_ = -1;                               ///< staircase level finish_ belongs to
     std::chrono::steady_clock::time_point finish_began_;  ///< of finish_
-    std::vector<FinishBody> early_finish_;       ///< finish messages heard before finish_ began
+    std::vector<FinishBody> early_finish_;  ///< finish messages heard before finish_ began
     /// Early finish messages kept per robot of the team at most (a peer is a few exchanges ahead
     /// at most: it waits for this robot's); beyond: dropped and counted.
     static constexpr std::size_t kEarlyFinishPerRobot = 8;
     certify::TeamFinishProgress finish_before_;  ///< summed over the finishes ended
+    double finish_seconds_before_ = 0.0;         ///< their wall time
     int finishes_ = 0;
     std::string finish_status_;
     std::uint64_t finish_dropped_ = 0;

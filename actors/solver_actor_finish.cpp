@@ -138,10 +138,11 @@ void SolverActor::EndFinish() {
     const auto status = finish_->status();
     finish_status_ = StatusName(status);
     const auto& p = finish_->Progress();
-    std::fprintf(
-        stderr, "solver %d: the team's finish %s: %d trust-region steps, %d CG in %.2f s\n",
-        RobotId(), finish_status_.c_str(), p.iterations, p.tcg_iterations,
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - finish_began_).count());
+    const double seconds = FinishSeconds() - finish_seconds_before_;
+    finish_seconds_before_ += seconds;
+    std::fprintf(stderr,
+                 "solver %d: the team's finish %s: %d trust-region steps, %d CG in %.2f s\n",
+                 RobotId(), finish_status_.c_str(), p.iterations, p.tcg_iterations, seconds);
     Add(finish_->Progress(), &finish_before_);
     ++finishes_;
     state_.SetNeighbourPoses(finish_->NeighbourPoses());
@@ -167,9 +168,16 @@ void SolverActor::EndFinish() {
 
 void SolverActor::DropFinish() {
     if (!finish_) return;  // a saddle escape or a new session: the finish's X is of the old one
+    finish_seconds_before_ = FinishSeconds();
     Add(finish_->Progress(), &finish_before_);
     finish_.reset();
     finish_status_ = "dropped";
+}
+
+double SolverActor::FinishSeconds() const {
+    if (!finish_) return finish_seconds_before_;
+    return finish_seconds_before_ +
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - finish_began_).count();
 }
 
 certify::TeamFinishProgress SolverActor::FinishTotals() const {

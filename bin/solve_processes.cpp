@@ -295,6 +295,7 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
     r.finish_cg_iterations = finish.value("cg_iterations", 0);
     r.finish_exchanges = finish.value("exchanges", 0ull);
     r.finish_reductions = finish.value("reductions", 0ull);
+    r.finish_seconds = finish.value("seconds", 0.0);
     if (anchor.contains("certificate_report")) {
         v1::CertificateReport report;
         const auto status = google::protobuf::util::JsonStringToMessage(

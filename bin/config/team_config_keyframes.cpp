@@ -125,7 +125,8 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
         robot["finish"] = {{"status", s.finish_status},
                            {"steps", s.finish.iterations},
                            {"cg_iterations", s.finish.tcg_iterations},
-                           {"exchanges", s.finish.exchanges}};
+                           {"exchanges", s.finish.exchanges},
+                           {"seconds", s.finish_seconds}};
         Evaluate(source, robots[k], s, &robot);
         if (k < meshes.size() && !meshes[k].is_null()) robot["mesh"] = meshes[k];
         report["robots"].push_back(robot);

@@ -114,7 +114,7 @@ Eigen::MatrixXd FinishDomain::Solve(const Eigen::MatrixXd& B) const {
 bool FinishDomain::Solve(const Eigen::MatrixXd& r,
                          const std::map<slam::PoseId, Eigen::MatrixXd>& by_id,
                          Eigen::MatrixXd* z_own, std::map<int, std::vector<slam::PoseId>>* ids,
-                         std::map<int, Eigen::MatrixXd>* blocks) const {
+                         std::map<int, Eigen::MatrixXd>* blocks, double* rz) const {
     Eigen::MatrixXd rD(r.rows(), r.cols() + kBlock * Eigen::Index(others_.size()));
     rD.leftCols(r.cols()) = r;
     for (size_t k = 0; k < others_.size(); ++k) {
@@ -124,6 +124,7 @@ bool FinishDomain::Solve(const Eigen::MatrixXd& r,
         rD.middleCols(r.cols() + kBlock * Eigen::Index(k), kBlock) = it->second;
     }
     const Eigen::MatrixXd zD = Solve(rD);
+    *rz = rD.cwiseProduct(zD).sum();
     *z_own = zD.leftCols(r.cols());
     std::map<int, std::vector<Eigen::Index>> at;  // neighbour -> columns of zD
     for (size_t k = 0; k < others_.size(); ++k) {

@@ -41,10 +41,11 @@ class FinishDomain {
     Eigen::MatrixXd Solve(const Eigen::MatrixXd& B) const;
     /// The domain's solve of r (own columns) with the neighbours' entries `by_id` at Others():
     /// the own part in *z_own, each neighbour's part in (*ids)[j], (*blocks)[j] (every key of
-    /// *ids gets a block); false when an entry is missing or of another rank.
+    /// *ids gets a block), and <r_D, z_D> over the domain in *rz; false when an entry is missing
+    /// or of another rank.
     bool Solve(const Eigen::MatrixXd& r, const std::map<slam::PoseId, Eigen::MatrixXd>& by_id,
                Eigen::MatrixXd* z_own, std::map<int, std::vector<slam::PoseId>>* ids,
-               std::map<int, Eigen::MatrixXd>* blocks) const;
+               std::map<int, Eigen::MatrixXd>* blocks, double* rz) const;
     /// Adds the neighbours' returned parts at own poses (messages of (ids, r x 4|ids|)) to z;
     /// false when one names a pose that is not own or has another rank.
     bool AddReturned(const std::map<int, std::pair<std::vector<slam::PoseId>, Eigen::MatrixXd>>& in,

@@ -109,6 +109,7 @@ TEST(PoseGraphTeam, TheFinishAfterThreeRoundsCertifiesTheInProcessOptimum) {
     EXPECT_GT(team.finish_cg_iterations, 0);
     EXPECT_GE(team.finish_exchanges, std::uint64_t(team.finish_cg_iterations));
     EXPECT_GT(team.finish_reductions, 0u);
+    EXPECT_GT(team.finish_seconds, 0.0);
     EXPECT_EQ(team.finish_dropped, 0u);
     EXPECT_EQ(team.solver_mode, "synchronous");  // no robot went on asynchronously
     // Three sweeps and the finish's block: nothing more moved any robot's block.

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -111,8 +112,8 @@ struct Pair {
                                 TeamFinishConfig{});
         }
     }
-    // Delivers until nothing moves; returns the messages moved.
-    int Deliver() {
+    // Delivers until nothing moves (each vector through `edit` first); returns the messages moved.
+    int Deliver(const std::function<void(int from, FinishVector*)>& edit = {}) {
         int moved = 0;
         for (bool more = true; more;) {
             more = false;
@@ -121,7 +122,8 @@ struct Pair {
                     robots[e.to].OnEdges(i, e.poses, e.edges);
                     more = true;
                 }
-                for (const auto& v : robots[i].TakeVectors()) {
+                for (auto& v : robots[i].TakeVectors()) {
+                    if (edit) edit(i, &v);
                     robots[v.to].OnVector(i, v.step, v.ids, v.blocks);
                     more = true;
                 }
@@ -194,6 +196,28 @@ TEST(TeamFinish, ALocalFailureEndsEveryRobotAtTheSameSum) {
     for (auto& r : pair.robots) {
         EXPECT_EQ(r.status(), TeamFinish::Status::kInconsistent);
         EXPECT_EQ(r.Progress().reductions, 1u);
+    }
+}
+
+// Robot 1 returns its share of robot 0's preconditioner at a pose robot 0 does not have (its
+// first scatter, exchange 2 after the start and the gather): robot 0 goes on with the CG
+// iteration's exchanges, and its non-finite share of the next sum (the curvature, the third)
+// ends both robots there.
+TEST(TeamFinish, AFailureInsideACgIterationEndsEveryRobotAtTheNextSum) {
+    Pair pair;
+    for (auto& r : pair.robots) r.Start();
+    bool edited = false;
+    pair.Deliver([&](int from, FinishVector* v) {
+        if (from == 1 && v->step == 2 && !v->ids.empty()) {
+            v->ids[0].index = 100000;
+            edited = true;
+        }
+    });
+    ASSERT_TRUE(edited);
+    for (auto& r : pair.robots) {
+        EXPECT_EQ(r.status(), TeamFinish::Status::kInconsistent);
+        EXPECT_EQ(r.Progress().reductions, 3u);
+        EXPECT_EQ(r.Progress().tcg_iterations, 0);  // the first one ends unfinished
     }
 }
 

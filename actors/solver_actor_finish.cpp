@@ -47,8 +47,8 @@ void SolverActor::StartFinish() {
     finish_level_ = state_.StaircaseLevel();
     finish_began_ = std::chrono::steady_clock::now();
     finish_status_ = StatusName(finish_->status());
-    std::fprintf(stderr, "solver %d: rounds did not converge in %d: the team's finish\n", RobotId(),
-                 config_.finish_after_rounds);
+    std::fprintf(stderr, "solver %d: the rounds hand over to the team's finish after %llu\n",
+                 RobotId(), static_cast<unsigned long long>(rounds_swept_));
     finish_->Start();
     const auto early = std::move(early_finish_);
     early_finish_.clear();

@@ -420,7 +420,7 @@ SolverActor::SnapshotKey SolverActor::KeyOfSnapshot() const {
     return {steps_, rounds_swept_, round_session_, rounds_converged_, rounds_gave_up_, local_ok_,
             publish_pending_, IsFinal(), state_.StaircaseLevel(), grad_norm_, changed_,
             // Per trust-region step, not per exchange: a snapshot rounds the whole trajectory,
-            // and the finish exchanges every few milliseconds without changing it.
+            // and the finish exchanges far more often than it changes (not until it ends).
             finish_ ? std::uint64_t(finish_->Progress().iterations) : 0};
 }
 

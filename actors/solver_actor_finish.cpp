@@ -69,8 +69,8 @@ bool SolverActor::OnFinish(const transport::Message& m) {
         return true;
     }
     if (!InSession(body->robot, proto->round_session(), proto->incarnation())) return true;
-    // Edges and vectors go to every peer on the poses stream: those for another robot are not
-    // this one's to read.
+    // Edges and vectors go to their receiver's robot topic only; one for another robot (a peer
+    // that subscribed to a topic not its own) is not this one's to read.
     if (body->kind != v1::FinishMessage::KIND_SUMS && body->to != RobotId()) return true;
     if (finish_ && body->staircase_level == finish_level_) {
         FeedFinish(*body);

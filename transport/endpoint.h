@@ -71,8 +71,9 @@ class Endpoint {
     SendStatus Send(const Message& message);
     /// Sends a message to one peer of a ROUTER (peer = Message::peer of one of its messages).
     SendStatus SendTo(std::string_view peer, const Message& message);
-    /// Publisher: sends a message to robot `robot`'s subscribers only (none other receives its
-    /// bytes). Its frames go inline, never through shm (the readers are not counted).
+    /// Publisher: sends a message to the subscribers of robot `robot`'s topic only (ZeroMQ does
+    /// not police who subscribes to it: the receiver still checks the message is for it). Its
+    /// frames go inline, never through shm (the readers are not counted).
     SendStatus SendToRobot(std::uint32_t robot, const Message& message);
 
     /// A buffer for the producer to fill and Seal() into a frame of a message to send here. On

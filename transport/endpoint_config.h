@@ -19,7 +19,7 @@ namespace certislam::transport {
 /// The socket pattern of an endpoint.
 enum class Role {
     kPublisher,   ///< stream out (XPUB: sees subscriptions, which start the handshake)
-    kSubscriber,  ///< stream in (SUB, subscribed to everything)
+    kSubscriber,  ///< stream in (SUB, subscribed to the broadcast and its robot's topics)
     kDealer,      ///< requests out / control client (DEALER)
     kRouter,      ///< requests in / control server (ROUTER, unroutable sends are errors)
     kPush,        ///< reliable one-way out (PUSH)
@@ -62,10 +62,12 @@ struct EndpointConfig {
     int listen_backlog = 4096;
     /// Caps on accepted connections of a socket bound to tcp:// (ConnectionGuard).
     ConnectionCaps connection_caps;
-    std::uint32_t robot_id = 0;  ///< this robot, stamped on control messages it sends
-    std::string node_name;       ///< this actor, stamped on control messages it sends
+    /// This robot, stamped on control messages it sends; a subscriber's robot topic.
+    std::uint32_t robot_id = 0;
+    std::string node_name;  ///< this actor, stamped on control messages it sends
     /// An edge whose addresses are all ipc:// moves each binary frame of at least
-    /// shm_threshold_bytes through POSIX shared memory: only a descriptor goes on the socket and
+    /// shm_threshold_bytes (but those of Endpoint::SendToRobot) through POSIX shared memory: only
+    /// a descriptor goes on the socket and
     /// the receiver's frame points into its read-only mapping. Receivers accept descriptors
     /// only on such an edge (elsewhere they are dropped and counted). A descriptor not taken
     /// within shm.loan_ttl is void (so the reaper can reclaim a segment whose reader died): a

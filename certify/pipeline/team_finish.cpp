@@ -178,8 +178,8 @@ void TeamFinish::OnEdges(int robot, const std::vector<slam::PoseId>& poses,
     m.Advance();
 }
 
-// A neighbour is at most two exchanges ahead (the product and H delta's entries, or the gather
-// and the scatter, before a sum) and one sum ahead:
+// A neighbour sends an exchange only with every neighbour's previous one in, so it is at most
+// one exchange ahead (the window allows two) and one sum ahead:
 // anything further, older, repeated, of another rank, not finite, or naming a pose of a third
 // robot is dropped (counted), so a peer cannot grow the mailboxes or overwrite others' poses.
 void TeamFinish::OnVector(int robot, std::uint64_t step, const std::vector<slam::PoseId>& ids,

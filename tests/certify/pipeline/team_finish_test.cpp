@@ -73,8 +73,9 @@ TEST(TeamFinish, FromAFewRoundsEveryRobotReachesTheOptimumWithTheSameDecisions) 
         EXPECT_LE(team.GradientNorm(), 1e-9 * cost);
         EXPECT_LT(team.GradientNorm(), 1e-6 * before);
         // Per trust-region step: one product per CG iteration, a preconditioner before the
-        // first and after every CG iteration but a last one on the boundary (two exchanges
-        // with overlap, none without), the candidate; and the starting X.
+        // first (gather and scatter) and after every CG iteration but a last one on the boundary
+        // (H delta's entries and the scatter; none without overlap), the candidate; and the
+        // starting X.
         const std::uint64_t per_prec = overlap > 0 ? 2 : 0;
         EXPECT_GE(p.exchanges, 1 + std::uint64_t(p.tcg_iterations) + std::uint64_t(p.iterations));
         EXPECT_LE(p.exchanges, 1 + std::uint64_t(p.tcg_iterations) * (1 + per_prec) +

@@ -67,8 +67,8 @@ struct EndpointConfig {
     std::string node_name;  ///< this actor, stamped on control messages it sends
     /// An edge whose addresses are all ipc:// moves each binary frame of at least
     /// shm_threshold_bytes (but those of Endpoint::SendToRobot) through POSIX shared memory: only
-    /// a descriptor goes on the socket and
-    /// the receiver's frame points into its read-only mapping. Receivers accept descriptors
+    /// a descriptor goes on the socket and the receiver's frame points into its read-only
+    /// mapping. Receivers accept descriptors
     /// only on such an edge (elsewhere they are dropped and counted). A descriptor not taken
     /// within shm.loan_ttl is void (so the reaper can reclaim a segment whose reader died): a
     /// receiver lagging further behind drops it, counted in dropped_shm; raise loan_ttl there.

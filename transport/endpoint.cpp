@@ -50,6 +50,7 @@ std::string RobotTopic(std::uint32_t robot) {
 Endpoint::Endpoint(zmq::context_t& context, EndpointConfig config)
     : config_(std::move(config)), socket_(context, SocketType(config_.role)) {
     config_.Validate();
+    robot_topic_ = RobotTopic(config_.robot_id);
     Configure();
     const auto is_tcp = [](const std::string& a) { return a.rfind("tcp://", 0) == 0; };
     const ConnectionCaps& caps = config_.connection_caps;
@@ -97,7 +98,7 @@ void Endpoint::Configure() {
             break;
         case Role::kSubscriber:
             socket_.set(zmq::sockopt::subscribe, kBroadcastTopic);
-            socket_.set(zmq::sockopt::subscribe, RobotTopic(config_.robot_id));
+            socket_.set(zmq::sockopt::subscribe, robot_topic_);
             break;
         case Role::kRouter:
             socket_.set(zmq::sockopt::router_mandatory, 1);
@@ -263,9 +264,9 @@ void Endpoint::HandleFrames(std::vector<zmq::message_t>&& frames) {
         if (const char* user = zmq_msg_gets(frames.front().handle(), "User-Id")) user_id = user;
     }
     if (config_.role == Role::kSubscriber) {  // the topic frame: broadcast or this robot's
-        const std::string topic = frames.empty() ? std::string() : frames.front().to_string();
-        if (frames.size() < 2 ||
-            (topic != kBroadcastTopic && topic != RobotTopic(config_.robot_id))) {
+        const std::string_view topic =
+            frames.empty() ? std::string_view() : frames.front().to_string_view();
+        if (frames.size() < 2 || (topic != kBroadcastTopic && topic != robot_topic_)) {
             counters_.dropped_malformed.fetch_add(1);
             return;
         }

@@ -137,6 +137,7 @@ class Endpoint {
     Message MakeControl(std::uint64_t nonce, bool hello) const;
 
     EndpointConfig config_;
+    std::string robot_topic_;  ///< RobotTopic(config_.robot_id), compared on every receive
     zmq::socket_t socket_;
     std::unique_ptr<ConnectionGuard> guard_;  ///< set when bound to tcp:// with caps
     std::vector<std::string> bound_;

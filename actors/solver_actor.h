@@ -164,6 +164,7 @@ class SolverActor final : public NodeActor {
     /// The finish's counters so far, with those of the finishes before.
     certify::TeamFinishProgress FinishTotals() const;
     double FinishSeconds() const;  ///< wall time in the finishes so far
+    void RefreshFinishCounters();  ///< the snapshot's finish counters only (cheap, every message)
     /// Ends rounds_ (their counts kept) and its overlapping sweep.
     void DropRounds();
     /// The own poses near the neighbours (certify::BoundaryOf), kept until the graph changes.

@@ -130,6 +130,17 @@ void SolverActor::PumpFinish() {
         if (moved) last_round_progress_ = std::chrono::steady_clock::now();
         if (finish_->Done()) EndFinish();
     }
+    if (finish_) RefreshFinishCounters();
+}
+
+// Between two snapshots (one per trust-region step) the finish's counters still move: a run read
+// mid-finish, at a timeout, reports them as they are, not a step old.
+void SolverActor::RefreshFinishCounters() {
+    const auto totals = FinishTotals();
+    const double seconds = FinishSeconds();
+    std::lock_guard lock(snapshot_mutex_);
+    snapshot_.finish = totals;
+    snapshot_.finish_seconds = seconds;
 }
 
 // Converged: the finish's X is the rounds' result (certified as theirs would be). Otherwise the

@@ -309,13 +309,20 @@ bool Endpoint::ResolveShm(Message& message) {
 }
 
 void Endpoint::HandleSubscription(const zmq::message_t& frame) {
-    // A subscriber's broadcast subscription is its hello (its robot topic comes with it).
-    if (frame.size() != 1 + std::strlen(kBroadcastTopic) ||
-        std::memcmp(static_cast<const char*>(frame.data()) + 1, kBroadcastTopic,
-                    std::strlen(kBroadcastTopic)) != 0) {
-        return;
-    }
-    const auto kind = static_cast<const std::uint8_t*>(frame.data())[0];
+    // A subscriber subscribes to the broadcast topic, then to its robot's ("R<digits>."): the
+    // second is its hello, because one pipe keeps their order, so both filters are in by then
+    // and a SendToRobot right after WaitForSubscribers reaches it.
+    const auto* bytes = static_cast<const char*>(frame.data());
+    const std::string_view topic =
+        frame.size() > 0 ? std::string_view(bytes + 1, frame.size() - 1) : std::string_view();
+    const bool robot_topic = topic.size() >= 3 && topic.front() == 'R' && topic.back() == '.' &&
+                             std::all_of(topic.begin() + 1, topic.end() - 1,
+                                         [](char c) { return c >= '0' && c <= '9'; });
+    const auto kind = frame.size() > 0 ? static_cast<std::uint8_t>(bytes[0]) : std::uint8_t{2};
+    // A subscription to everything is a subscriber from before the topic frame: it would drop
+    // every message as malformed, so it is counted as of another wire version, not as a hello.
+    if (kind == 1 && topic.empty()) counters_.dropped_version.fetch_add(1);
+    if (!robot_topic) return;
     if (kind == 1) {
         ++subscribers_;
         ready_ = true;

@@ -23,10 +23,10 @@ namespace certislam::transport {
 
 /// Counters of one endpoint (a snapshot; safe to read from another thread).
 struct EndpointCounters {
-    std::uint64_t sent = 0;                  ///< messages handed to ZeroMQ
-    std::uint64_t received = 0;              ///< valid messages accepted into the queue
-    std::uint64_t dropped_malformed = 0;     ///< garbage, truncated, wrong frame count/size
-    std::uint64_t dropped_version = 0;       ///< unknown schema major version
+    std::uint64_t sent = 0;               ///< messages handed to ZeroMQ
+    std::uint64_t received = 0;           ///< valid messages accepted into the queue
+    std::uint64_t dropped_malformed = 0;  ///< garbage, truncated, wrong frame count/size
+    std::uint64_t dropped_version = 0;    ///< unknown schema major; a subscriber of the old framing
     std::uint64_t dropped_unauthorized = 0;  ///< header robot id != authenticated CURVE user id
     std::uint64_t dropped_queue_full = 0;    ///< kLatest: oldest dropped (receive) or send dropped
     std::uint64_t send_backpressure = 0;     ///< kReliable: Send gave up after send_timeout_ms
@@ -88,8 +88,9 @@ class Endpoint {
     /// The next valid message, waiting at most timeout.
     std::optional<Message> Receive(std::chrono::milliseconds timeout);
 
-    /// Publisher: waits until `count` subscriptions have arrived (each one is a subscriber's
-    /// hello); answers each with a Ready on the stream. Returns false on timeout.
+    /// Publisher: waits until `count` subscribers have said hello (a robot topic's subscription,
+    /// which follows the broadcast one); answers each with a Ready on the stream. Returns false
+    /// on timeout.
     bool WaitForSubscribers(std::size_t count, std::chrono::milliseconds timeout);
     /// Subscriber: waits for the publisher's Ready. Dealer: sends Hello, waits for the router's
     /// Ready (routers answer Hello by themselves). Returns false on timeout. Messages that

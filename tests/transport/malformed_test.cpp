@@ -133,5 +133,27 @@ TEST(Malformed, SubscriberDropsBadMessagesFromARawPublisher) {
     EXPECT_EQ(subscriber.counters().dropped_version, static_cast<std::uint64_t>(batch.version));
 }
 
+// A publisher counts a subscriber once its robot topic's subscription arrives (after its
+// broadcast one), and a subscription to everything, the framing before topics, as another
+// version: such a subscriber would read every message as malformed.
+TEST(Malformed, PublisherCountsAHelloOnlyAtARobotTopicAndAnOldSubscriberAsAnotherVersion) {
+    zmq::context_t context;
+    Endpoint publisher(context, Config(Role::kPublisher, "tcp://127.0.0.1:*", true));
+    zmq::socket_t raw(context, zmq::socket_type::sub);
+    raw.set(zmq::sockopt::linger, 0);
+    raw.connect(publisher.bound_addresses().front());
+    constexpr std::chrono::milliseconds kShort{300};
+    raw.set(zmq::sockopt::subscribe, "");
+    raw.set(zmq::sockopt::subscribe, kBroadcastTopic);
+    raw.set(zmq::sockopt::subscribe, "Rx.");  // not a robot topic
+    EXPECT_FALSE(publisher.WaitForSubscribers(1, kShort));
+    EXPECT_EQ(publisher.counters().dropped_version, 1u);
+    raw.set(zmq::sockopt::subscribe, RobotTopic(4));
+    EXPECT_TRUE(publisher.WaitForSubscribers(1, kTimeout));
+    EXPECT_FALSE(publisher.WaitForSubscribers(2, kShort));
+    EXPECT_EQ(publisher.subscribers(), 1u);
+    EXPECT_EQ(publisher.counters().dropped_version, 1u);
+}
+
 }  // namespace
 }  // namespace certislam::transport

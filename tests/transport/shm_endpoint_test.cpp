@@ -335,6 +335,32 @@ TEST(ShmEndpoint, PublisherLendsOneReferencePerSubscriberAndTheLastReleaseReclai
     EXPECT_FALSE(ShmSegmentExists(name));
 }
 
+// A message for one robot's topic has readers nobody counts (any subscriber of that topic): its
+// frames go inline, so no reference is lent that no reader would release.
+TEST(ShmEndpoint, PublisherSendsAMessageForOneRobotInlineAndLendsNothing) {
+    const TempDir dir;
+    const std::string address = "ipc://" + dir.path() + "/shm-robot";
+    const std::string prefix = Prefix();
+    zmq::context_t context;
+    Endpoint pub(context, IpcConfig(Role::kPublisher, address, true, prefix));
+    EndpointConfig config = IpcConfig(Role::kSubscriber, address, false, prefix);
+    config.robot_id = 2;
+    Endpoint sub(context, config);
+    ASSERT_TRUE(pub.WaitForSubscribers(1, kTimeout));
+    ASSERT_TRUE(sub.WaitReady(kTimeout));
+    WritableBuffer buffer = pub.Allocate(kLoanBytes);
+    Fill(buffer.bytes(), 6);
+    const SharedBuffer sealed = buffer.Seal();
+    ASSERT_NE(sealed.shm_segment(), nullptr);  // a frame that Send would have lent
+    ASSERT_EQ(pub.SendToRobot(2, TestMessage(1, 1, {sealed})), SendStatus::kSent);
+    const auto message = sub.Receive(kTimeout);
+    ASSERT_TRUE(message.has_value());
+    EXPECT_TRUE(Matches(message->frames.at(0).span(), 6));
+    EXPECT_EQ(MappingOf(message->frames[0].data()).rfind("/dev/shm", 0), std::string::npos);
+    EXPECT_EQ(pub.counters().shm_lent, 0u);
+    EXPECT_EQ(sub.counters().shm_received, 0u);
+}
+
 TEST(ShmEndpoint, ConfigRejectsAZeroThresholdAndTooLargeAPool) {
     EndpointConfig config = Config(Role::kPush, "ipc:///tmp/x", true);
     config.shm_threshold_bytes = 0;

@@ -254,16 +254,6 @@ void CertifierActor::Escape(const Eigen::SparseMatrix<double>& Q, const Eigen::M
 // Distributed rounds: the anchor opens them; every certifier builds its rows of S from the
 // named bundles and runs its share of Lanczos over CertificateVector/CertificateReduction.
 
-std::optional<certify::DistributedVerdict> CertifierActor::LastVerdict() const {
-    std::lock_guard lock(verdict_mutex_);
-    return verdict_;
-}
-
-std::optional<certify::CertificateResult> CertifierActor::LastCertificate() const {
-    std::lock_guard lock(verdict_mutex_);
-    return certificate_;
-}
-
 void CertifierActor::SubscribeRounds() {
     for (int r : Wiring().robots) {
         if (r != RobotId()) OpenClient(Edge::kCertify, r);
@@ -440,21 +430,25 @@ void CertifierActor::RoundFinished() {
                                                 std::chrono::steady_clock::now() - round_began_)
                                                 .count());
     // The anchor decides: the round's sums and lambda_min by the central rule, with the PSD test
-    // of S + e D of the round's graph (the bundles the round named: one X, one edge set).
-    slam::PoseGraph graph;
-    Eigen::MatrixXd X;
-    const bool assembled = anchor_ && Assemble(round_bundles_, &graph, &X);
-    std::optional<certify::CertificateResult> decided;
-    const Eigen::SparseMatrix<double> Q =
-        assembled ? slam::ConnectionLaplacian(graph) : Eigen::SparseMatrix<double>();
-    if (assembled) {
-        decided = certify::DecideRound(verdict, config_.certificate, certify::RoundPsdTest(Q, X));
-    }
+    // of S + e D of the round's graph (the bundles the round named: one X, one edge set). The
+    // graph, Q and X go before S + e D is factorized: the factor is the anchor's peak of memory.
+    std::optional<certify::PsdTestFunction> psd_at;
     std::optional<certify::CertificateResult> central;
-    if (assembled && config_.cross_check) {
-        central = certify::Certify(Q, X, 3, config_.certificate);
-        verdict.central_lambda_min = central->lambda_min;
+    if (anchor_) {
+        slam::PoseGraph graph;
+        Eigen::MatrixXd X;
+        if (Assemble(round_bundles_, &graph, &X)) {
+            const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(graph);
+            if (config_.cross_check) {
+                central = certify::Certify(Q, X, 3, config_.certificate);
+                verdict.central_lambda_min = central->lambda_min;
+            }
+            psd_at = certify::RoundPsdTest(Q, X);
+        }
     }
+    std::optional<certify::CertificateResult> decided;
+    if (psd_at) decided = certify::DecideRound(verdict, config_.certificate, *psd_at);
+    psd_at.reset();
     {
         std::lock_guard lock(verdict_mutex_);
         verdict_ = verdict;
@@ -467,20 +461,29 @@ void CertifierActor::RoundFinished() {
         dirty_ = true;
         return;
     }
-    if (decided->status == certify::CertificateResult::Status::kInconclusive &&
-        verdict.status == certify::DistributedVerdict::Status::kNotConverged && !dirty_) {
+    const bool fallback = decided->status == certify::CertificateResult::Status::kInconclusive &&
+                          verdict.status == certify::DistributedVerdict::Status::kNotConverged &&
+                          !dirty_;
+    if (!fallback) {
+        Publish(*decided, round_rank_, round_edges_, v1::CERTIFICATE_PATH_DISTRIBUTED,
+                round_bundles_);
+        if (decided->status != certify::CertificateResult::Status::kNotOptimal ||
+            level_ >= config_.max_staircase_steps) {
+            return;
+        }
+    }
+    slam::PoseGraph graph;  // the same bundles assemble as above
+    Eigen::MatrixXd X;
+    if (!Assemble(round_bundles_, &graph, &X)) return;
+    if (fallback) {
         // The eigen-solve ran out of steps at a settled iterate: no changed bundle will open
         // another round, so the anchor, which holds every bundle, checks this graph itself.
         ++fallbacks_;
         CheckCentrally(graph, X, v1::CERTIFICATE_PATH_FALLBACK, round_bundles_);
         return;
     }
-    Publish(*decided, round_rank_, round_edges_, v1::CERTIFICATE_PATH_DISTRIBUTED, round_bundles_);
-    if (decided->status != certify::CertificateResult::Status::kNotOptimal ||
-        level_ >= config_.max_staircase_steps) {
-        return;
-    }
     // The escape stays centralised: the anchor computes the eigenvector on the round's graph.
+    const Eigen::SparseMatrix<double> Q = slam::ConnectionLaplacian(graph);
     if (!central) central = certify::Certify(Q, X, 3, config_.certificate);
     if (central->status == certify::CertificateResult::Status::kNotOptimal) {
         Escape(Q, X, central->eigenvector, central->gradient_tolerance, round_bundles_);

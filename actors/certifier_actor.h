@@ -88,11 +88,17 @@ class CertifierActor final : public NodeActor {
     /// (CertifierConfig::settled_move_relative).
     int SettledSkips() const { return skipped_.load(); }
     /// The verdict of the last distributed round this robot finished (thread-safe).
-    std::optional<certify::DistributedVerdict> LastVerdict() const;
+    std::optional<certify::DistributedVerdict> LastVerdict() const {
+        std::lock_guard lock(verdict_mutex_);
+        return verdict_;
+    }
     /// Anchor: the certificate it last reported: a distributed round's, decided by the central
     /// rule (certify::DecideRound) on the round's graph, or its own central check's (centralised
     /// mode, or the fallback after a round without a verdict) (thread-safe).
-    std::optional<certify::CertificateResult> LastCertificate() const;
+    std::optional<certify::CertificateResult> LastCertificate() const {
+        std::lock_guard lock(verdict_mutex_);
+        return certificate_;
+    }
 
   protected:
     void OnStart() override;

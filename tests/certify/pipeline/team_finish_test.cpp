@@ -137,7 +137,41 @@ struct Pair {
         }
         return moved;
     }
+    // Delivers in waves: every message sent so far at once, then what that made the robots send;
+    // returns the number of waves (sequential message hops) until nothing moves.
+    int Waves() {
+        for (int waves = 0;; ++waves) {
+            std::vector<std::pair<int, FinishEdges>> edges;
+            std::vector<std::pair<int, FinishVector>> vectors;
+            std::vector<std::pair<int, FinishSums>> sums;
+            for (int i = 0; i < 2; ++i) {
+                for (auto& e : robots[i].TakeEdges()) edges.emplace_back(i, std::move(e));
+                for (auto& v : robots[i].TakeVectors()) vectors.emplace_back(i, std::move(v));
+                for (auto& x : robots[i].TakeSums()) sums.emplace_back(i, std::move(x));
+            }
+            if (edges.empty() && vectors.empty() && sums.empty()) return waves;
+            for (const auto& [i, e] : edges) robots[e.to].OnEdges(i, e.poses, e.edges);
+            for (const auto& [i, v] : vectors) robots[v.to].OnVector(i, v.step, v.ids, v.blocks);
+            for (const auto& [i, x] : sums) {
+                for (auto& r : robots) r.OnSums(i, x.step, x.values);
+            }
+        }
+    }
 };
+
+// Message hops, the finish's latency over a network: a trust-region step's start (the gather,
+// the first scatter, the candidate and its sums), then three per CG iteration: delta's read,
+// H delta's entries with the curvature, the scatter with the preconditioner's sums.
+TEST(TeamFinish, ACgIterationTakesThreeMessageHops) {
+    Pair pair;
+    for (auto& r : pair.robots) r.Start();
+    const int waves = pair.Waves();
+    const auto& p = pair.robots[0].Progress();
+    ASSERT_EQ(pair.robots[0].status(), TeamFinish::Status::kConverged);
+    ASSERT_GE(p.tcg_iterations, 2 * p.iterations);  // enough CG for the count to tell
+    EXPECT_LE(waves, 2 + 4 * p.iterations + 3 * p.tcg_iterations);
+    EXPECT_GE(waves, 2 + 3 * p.tcg_iterations);
+}
 
 TEST(TeamFinish, MalformedSumsEndEveryRobotAsInconsistentInsteadOfWaiting) {
     Pair pair;
@@ -219,6 +253,52 @@ TEST(TeamFinish, AFailureInsideACgIterationEndsEveryRobotAtTheNextSum) {
         EXPECT_EQ(r.status(), TeamFinish::Status::kInconsistent);
         EXPECT_EQ(r.Progress().reductions, 3u);
         EXPECT_EQ(r.Progress().tcg_iterations, 0);  // the first one ends unfinished
+    }
+}
+
+// Robot 1's H delta entries (exchange 4: the first CG iteration's second hop) lack one pose of
+// robot 0's domain: robot 0 cannot update that copy of robot 1's r, spoils its share of the
+// next sum (the scatter's, the fourth) and both robots end there.
+TEST(TeamFinish, AMissingHDeltaEntryEndsEveryRobotAtTheNextSum) {
+    Pair pair;
+    for (auto& r : pair.robots) r.Start();
+    bool edited = false;
+    pair.Deliver([&](int from, FinishVector* v) {
+        if (from == 1 && v->step == 4 && !v->ids.empty()) {
+            v->ids.erase(v->ids.begin());
+            v->blocks = Eigen::MatrixXd(v->blocks.rightCols(v->blocks.cols() - 4));
+            edited = true;
+        }
+    });
+    ASSERT_TRUE(edited);
+    for (auto& r : pair.robots) {
+        EXPECT_EQ(r.status(), TeamFinish::Status::kInconsistent);
+        EXPECT_EQ(r.Progress().reductions, 4u);
+        EXPECT_EQ(r.Progress().tcg_iterations, 1);
+    }
+}
+
+// Robot 0's gather (exchange 1) lacks one pose of robot 1's domain: robot 1's domain solve
+// fails, it sends an empty scatter, which robot 0 takes as such, and its non-finite share of the
+// scatter's sums (the second) ends both robots there.
+TEST(TeamFinish, AFailedDomainSolveSendsAnEmptyScatterAndEndsEveryRobotAtItsSum) {
+    Pair pair;
+    for (auto& r : pair.robots) r.Start();
+    bool edited = false, empty_scatter = false;
+    pair.Deliver([&](int from, FinishVector* v) {
+        if (from == 0 && v->step == 1 && !v->ids.empty()) {
+            v->ids.erase(v->ids.begin());
+            v->blocks = Eigen::MatrixXd(v->blocks.rightCols(v->blocks.cols() - 4));
+            edited = true;
+        }
+        if (from == 1 && v->step == 2) empty_scatter = v->ids.empty() && v->blocks.cols() == 0;
+    });
+    ASSERT_TRUE(edited);
+    EXPECT_TRUE(empty_scatter);
+    for (auto& r : pair.robots) {
+        EXPECT_EQ(r.status(), TeamFinish::Status::kInconsistent);
+        EXPECT_EQ(r.Progress().reductions, 2u);
+        EXPECT_EQ(r.Progress().tcg_iterations, 0);
     }
 }
 

@@ -256,6 +256,12 @@ TEST(TeamFinish, AFailureInsideACgIterationEndsEveryRobotAtTheNextSum) {
     }
 }
 
+// Removes a vector's first pose and its columns (4 per pose).
+void DropFirstEntry(FinishVector* v) {
+    v->ids.erase(v->ids.begin());
+    v->blocks = Eigen::MatrixXd(v->blocks.rightCols(v->blocks.cols() - 4));
+}
+
 // Robot 1's H delta entries (exchange 4: the first CG iteration's second hop) lack one pose of
 // robot 0's domain: robot 0 cannot update that copy of robot 1's r, spoils its share of the
 // next sum (the scatter's, the fourth) and both robots end there.
@@ -265,8 +271,7 @@ TEST(TeamFinish, AMissingHDeltaEntryEndsEveryRobotAtTheNextSum) {
     bool edited = false;
     pair.Deliver([&](int from, FinishVector* v) {
         if (from == 1 && v->step == 4 && !v->ids.empty()) {
-            v->ids.erase(v->ids.begin());
-            v->blocks = Eigen::MatrixXd(v->blocks.rightCols(v->blocks.cols() - 4));
+            DropFirstEntry(v);
             edited = true;
         }
     });
@@ -287,8 +292,7 @@ TEST(TeamFinish, AFailedDomainSolveSendsAnEmptyScatterAndEndsEveryRobotAtItsSum)
     bool edited = false, empty_scatter = false;
     pair.Deliver([&](int from, FinishVector* v) {
         if (from == 0 && v->step == 1 && !v->ids.empty()) {
-            v->ids.erase(v->ids.begin());
-            v->blocks = Eigen::MatrixXd(v->blocks.rightCols(v->blocks.cols() - 4));
+            DropFirstEntry(v);
             edited = true;
         }
         if (from == 1 && v->step == 2) empty_scatter = v->ids.empty() && v->blocks.cols() == 0;

@@ -334,9 +334,14 @@ void SolverActor::Heartbeat() {
     if (in_rounds && finish_) return;  // the finish's messages are never lost (reliable edges)
     if (in_rounds) {
         // Rounds stalled for a heartbeat: a peer may have joined late or lost a message; re-send
-        // the last two rounds' messages (receivers keep one copy per round).
-        if (std::chrono::steady_clock::now() - last_round_progress_ >= config_.heartbeat) {
-            for (const auto& p : last_round_poses_) Send(*poses_out_, transport::Pack(p), true);
+        // the last two rounds' messages (receivers keep one copy per round), at a doubling
+        // interval up to kMaxResendWait while no round progresses: a robot waiting for a slow
+        // peer must not flood the team (50 robots' re-sends starved the round 0 placement).
+        const auto now = std::chrono::steady_clock::now();
+        if (now - last_round_progress_ >= config_.heartbeat && now - last_resend_ >= resend_wait_) {
+            last_resend_ = now;
+            resend_wait_ = std::min(2 * resend_wait_, std::max(config_.heartbeat, kMaxResendWait));
+            for (const auto& p : last_round_poses_) SendToNeighbours(p);
             for (const auto& s : last_round_sums_) Send(*poses_out_, transport::Pack(s), true);
             // Nothing sent in this session yet (a higher robot waits for its lower neighbours):
             // a status tells the peers this solver's session and incarnation.

@@ -57,8 +57,9 @@ struct SolverActorConfig {
     /// the mapper and the peers), the rounds once it is final. false: no update before final.
     bool async_until_final = false;
     certify::TeamRoundsConfig rounds;  ///< the rounds
-    /// Rounds that made no progress this long (peers silent) give up: asynchronous updates take
-    /// over, as after rounds.max_rounds; > 0.
+    /// Rounds that made no progress this long, plus SolverActor::kStallPerRobot per robot of the
+    /// team (peers silent), give up: asynchronous updates take over, as after rounds.max_rounds;
+    /// > 0.
     std::chrono::milliseconds rounds_stall{20000};
     /// Synchronous mode: from this round on, rounds whose linear rate projects their tolerance
     /// beyond rounds.max_rounds (TeamRoundsConfig::hand_over_after), and rounds that reach
@@ -145,6 +146,8 @@ class SolverActor final : public NodeActor {
     void AdvanceRounds();
     bool SyncAction(const certify::RoundAction& a);
     void SendRoundPoses(std::uint64_t round);
+    /// Round poses to the rounds' neighbours only, each its copy (Endpoint::SendToRobot).
+    void SendToNeighbours(const v1::PublicPoses& poses);
     void SendRoundSums(std::uint64_t round, double cost, double grad_norm);
     void OnRoundSums(const v1::SolverStatus& status);
     /// Applies a peer message's round session and incarnation; true when it is of this session.
@@ -262,6 +265,13 @@ class SolverActor final : public NodeActor {
     std::vector<v1::PublicPoses> last_round_poses_;  ///< last two rounds', re-sent on a stall
     std::vector<v1::SolverStatus> last_round_sums_;  ///< last two rounds', re-sent on a stall
     std::chrono::steady_clock::time_point last_round_progress_{};
+    std::chrono::steady_clock::time_point last_resend_{};  ///< last re-send of a stalled round
+    std::chrono::milliseconds resend_wait_{200};           ///< the next re-send's wait (doubling)
+    /// Re-sends of a stalled round are this far apart at most (Heartbeat).
+    static constexpr std::chrono::milliseconds kMaxResendWait{3200};
+    /// The rounds' stall allowance per robot of the team (RoundsStall).
+    static constexpr std::chrono::milliseconds kStallPerRobot{1000};
+    std::chrono::milliseconds RoundsStall() const;
     /// Round sessions: a peer that restarted lost its rounds, so the team opens a new session
     /// (solver_actor_rounds.cpp); the sessions only grow, and every robot joins the highest.
     std::uint64_t round_session_ = 0;

@@ -2,6 +2,7 @@
 // round-tagged public poses and sums of the other robots' solvers.
 #include <algorithm>
 #include <cstdio>
+#include <string>
 
 #include "actors/convert.h"
 #include "actors/solver_actor.h"
@@ -40,8 +41,16 @@ void SolverActor::SendRoundPoses(std::uint64_t round) {
     *proto.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     proto.set_overlap_depth(static_cast<std::uint32_t>(config_.rounds.overlap_depth));
     StampSession(&proto);
-    Send(*poses_out_, transport::Pack(proto), true);
+    SendToNeighbours(proto);
     KeepLastTwo(&last_round_poses_, std::move(proto));
+}
+
+// Only the neighbours' rounds read a robot's round poses (TeamRounds::OnPoses drops the
+// others'): a broadcast made every solver of a 50-robot team decode every robot's poses.
+void SolverActor::SendToNeighbours(const v1::PublicPoses& poses) {
+    if (!rounds_) return;
+    const auto message = transport::Pack(poses);
+    for (int j : rounds_->Neighbours()) SendToRobot(*poses_out_, j, message, true);
 }
 
 void SolverActor::SendRoundSums(std::uint64_t round, double cost, double grad_norm) {
@@ -104,6 +113,7 @@ void SolverActor::NewSession(std::uint64_t session) {
     last_round_poses_.clear();
     last_round_sums_.clear();
     last_round_progress_ = std::chrono::steady_clock::now();
+    resend_wait_ = config_.heartbeat;
     if (!rounds_ && !restored_ && !rounds_gave_up_) return;  // no rounds begun yet
     DropRounds();
     chordal_started_ = true;  // a restored block is kept too
@@ -183,7 +193,10 @@ void SolverActor::AdvanceRounds() {
                      "reach or not a pose\n",
                      RobotId());
     }
-    if (progressed) last_round_progress_ = std::chrono::steady_clock::now();
+    if (progressed) {
+        last_round_progress_ = std::chrono::steady_clock::now();
+        resend_wait_ = config_.heartbeat;
+    }
 }
 
 // Synchronous mode: nothing before the graph is final; then rounds until converged (or given up:
@@ -204,10 +217,11 @@ void SolverActor::SyncTick() {
     if (!rounds_) StartRounds();
     AdvanceRounds();
     const auto now = std::chrono::steady_clock::now();
-    if (!rounds_converged_ && !rounds_gave_up_ &&
-        now - last_round_progress_ >= config_.rounds_stall) {
-        std::fprintf(stderr, "solver %d: round session %llu stalled: asynchronous updates\n",
-                     RobotId(), static_cast<unsigned long long>(round_session_));
+    if (!rounds_converged_ && !rounds_gave_up_ && now - last_round_progress_ >= RoundsStall()) {
+        const std::string waiting = rounds_ ? rounds_->Waiting() : std::string();
+        std::fprintf(stderr, "solver %d: round session %llu stalled (%s): asynchronous updates\n",
+                     RobotId(), static_cast<unsigned long long>(round_session_),
+                     waiting.empty() ? "no round message awaited" : waiting.c_str());
         DropFinish();            // a finish waiting for a silent peer too
         rounds_gave_up_ = true;  // Tick's asynchronous path from here, as after max_rounds
         work_ = true;
@@ -242,6 +256,7 @@ void SolverActor::StartRounds() {
     early_sums_.clear();
     for (const auto& s : sums) OnRoundSums(s);
     last_round_progress_ = std::chrono::steady_clock::now();
+    resend_wait_ = config_.heartbeat;
 }
 
 void SolverActor::DropRounds() {
@@ -253,6 +268,13 @@ void SolverActor::DropRounds() {
     rounds_.reset();
     overlap_.reset();
     DropFinish();
+}
+
+// Round 0 places the robots one after another in id order (TeamRounds, kAlign): the last of N
+// waits for N - 1 placements before it moves, each a message hop through a loaded host.
+std::chrono::milliseconds SolverActor::RoundsStall() const {
+    return config_.rounds_stall +
+           kStallPerRobot * static_cast<std::int64_t>(Wiring().robots.size());
 }
 
 bool SolverActor::FinishesRounds() const { return config_.finish_after_rounds > 0; }

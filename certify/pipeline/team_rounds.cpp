@@ -118,23 +118,48 @@ void TeamRounds::OnSums(int robot, std::uint64_t round, double cost, double grad
     if (robot == robot_ && round == current_) evaluated_ = true;
 }
 
+bool TeamRounds::HaveNeighbour(int j, std::uint64_t round, bool lower_only) const {
+    const auto it = nbr_.find(j);
+    if (it == nbr_.end()) return j > robot_ && lower_only && round == 0;
+    if (Earlier(j, round) || !lower_only) return it->second.count(round) > 0;
+    if (round == 0) return true;  // placement waits for lower neighbours only
+    return it->second.count(accepted_) > 0 &&
+           (beta_ == 0.0 || it->second.count(accepted_prev_) > 0);
+}
+
 bool TeamRounds::HaveNeighbours(std::uint64_t round, bool lower_only) const {
-    for (int j : neighbours_) {
-        const auto it = nbr_.find(j);
-        if (it == nbr_.end()) {
-            if (j > robot_ && lower_only && round == 0) continue;
-            return false;
+    return std::all_of(neighbours_.begin(), neighbours_.end(),
+                       [&](int j) { return HaveNeighbour(j, round, lower_only); });
+}
+
+std::string TeamRounds::Waiting() const {
+    if (converged_ || handed_over_ || current_ > static_cast<std::uint64_t>(config_.max_rounds)) {
+        return "";
+    }
+    const bool sweep = own_.count(current_) == 0;
+    std::vector<int> missing;
+    const char* what = "poses";
+    if (sweep || !evaluated_) {
+        for (int j : neighbours_) {
+            if (!HaveNeighbour(j, current_, sweep)) missing.push_back(j);
         }
-        if (Earlier(j, round) || !lower_only) {
-            if (it->second.count(round) == 0) return false;
-        } else if (round == 0) {
-            continue;  // placement waits for lower neighbours only
-        } else if (it->second.count(accepted_) == 0 ||
-                   (beta_ != 0.0 && it->second.count(accepted_prev_) == 0)) {
-            return false;
+    } else {
+        what = "sums";
+        const auto it = sums_.find(current_);
+        for (int r : robots_) {
+            if (it == sums_.end() || it->second.count(r) == 0) missing.push_back(r);
         }
     }
-    return true;
+    if (missing.empty()) return "";
+    std::string out = "round " + std::to_string(current_) + ": the " + what + " of robot";
+    out += missing.size() > 1 ? "s" : "";
+    for (size_t k = 0; k < missing.size() && k < kWaitingListed; ++k) {
+        out += (k == 0 ? " " : ", ") + std::to_string(missing[k]);
+    }
+    if (missing.size() > kWaitingListed) {
+        out += " and " + std::to_string(missing.size() - kWaitingListed) + " more";
+    }
+    return out;
 }
 
 PoseBlocks TeamRounds::NeighbourPoses(std::uint64_t round, bool extrapolate_higher) const {

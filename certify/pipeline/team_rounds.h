@@ -11,6 +11,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -84,6 +85,8 @@ class TeamRounds {
     /// The own block after the sweep (or placement) of `round`.
     void SweepDone(std::uint64_t round, const Eigen::MatrixXd& own_candidate);
 
+    /// The robots this one shares edges with: the only ones whose poses it takes.
+    const std::set<int>& Neighbours() const { return neighbours_; }
     /// Rounds swept so far (round 0 is the start, not a sweep).
     std::uint64_t Rounds() const { return swept_; }
     /// Adaptive restarts so far: rounds dropped because f rose, and kept extrapolated rounds
@@ -121,6 +124,11 @@ class TeamRounds {
     /// The rounds ended early: their rate projected rel_grad_tol beyond max_rounds
     /// (TeamRoundsConfig::hand_over_after).
     bool HandedOver() const { return handed_over_; }
+    /// What Next() waits for, for a log line ("round 3: the sums of robots 7, 9"); empty when it
+    /// does not wait for a message (converged, given up, or an action is due).
+    std::string Waiting() const;
+    /// Robots Waiting() lists by id at most (the rest counted).
+    static constexpr std::size_t kWaitingListed = 8;
     /// Rounds over which hand_over_after measures the rate.
     static constexpr std::uint64_t kRateWindow = 20;
     /// ... and how far beyond max_rounds that rate must project rel_grad_tol.
@@ -132,6 +140,9 @@ class TeamRounds {
     /// True when neighbour j sweeps `round` before this robot: round 0 in id order, later rounds
     /// in colour order.
     bool Earlier(int j, std::uint64_t round) const;
+    /// Neighbour j's poses that the sweep (`lower_only`) or the evaluation of `round` needs are
+    /// in.
+    bool HaveNeighbour(int j, std::uint64_t round, bool lower_only) const;
     bool HaveNeighbours(std::uint64_t round, bool lower_only) const;
     /// Own poses that an earlier neighbour's overlapping sweep of `round` proposed replace those
     /// of the start (multiplicative Schwarz: the sweep goes on from them); of two proposals of

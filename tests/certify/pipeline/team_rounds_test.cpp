@@ -441,5 +441,32 @@ TEST(TeamRounds, OverlapDepthOutOfRangeIsNamed) {
     }
 }
 
+// Waiting() names what Next() waits for, for the solver's stall line: round 0's placement waits
+// for the lower neighbour's poses, its evaluation for the higher one's, its decision for every
+// other robot's sums; nothing once every action is due.
+TEST(TeamRounds, WaitingNamesTheMissingPosesAndSums) {
+    TeamRounds rounds(1, {0, 1, 2, 3}, {0, 2}, TeamRoundsConfig{});
+    const auto poses_of = [](int robot) {
+        PoseBlocks p;
+        p.ids = {slam::PoseId{robot, 0}};
+        p.blocks = Eigen::MatrixXd::Identity(5, 4);
+        return p;
+    };
+    EXPECT_EQ(rounds.Next().kind, RoundAction::Kind::kWait);
+    EXPECT_EQ(rounds.Waiting(), "round 0: the poses of robot 0");
+    rounds.OnPoses(0, 0, poses_of(0));
+    EXPECT_EQ(rounds.Waiting(), "");  // the placement is due
+    ASSERT_EQ(rounds.Next().kind, RoundAction::Kind::kAlign);
+    rounds.SweepDone(0, poses_of(1).blocks);
+    EXPECT_EQ(rounds.Next().kind, RoundAction::Kind::kWait);
+    EXPECT_EQ(rounds.Waiting(), "round 0: the poses of robot 2");
+    rounds.OnPoses(2, 0, poses_of(2));
+    ASSERT_EQ(rounds.Next().kind, RoundAction::Kind::kEvaluate);
+    rounds.OnSums(1, 0, 1.0, 1.0);
+    rounds.OnSums(2, 0, 1.0, 1.0);
+    EXPECT_EQ(rounds.Next().kind, RoundAction::Kind::kWait);
+    EXPECT_EQ(rounds.Waiting(), "round 0: the sums of robots 0, 3");
+}
+
 }  // namespace
 }  // namespace certislam::certify

@@ -335,8 +335,8 @@ void SolverActor::Heartbeat() {
     if (in_rounds) {
         // Rounds stalled for a heartbeat: a peer may have joined late or lost a message; re-send
         // the last two rounds' messages (receivers keep one copy per round), at a doubling
-        // interval up to kMaxResendWait while no round progresses: a robot waiting for a slow
-        // peer must not flood the team (50 robots' re-sends starved the round 0 placement).
+        // interval up to kMaxResendWait while no round progresses: a peer that is only slow
+        // (round 0 places the robots one after another) must not be flooded by the waiting ones.
         const auto now = std::chrono::steady_clock::now();
         if (now - last_round_progress_ >= config_.heartbeat && now - last_resend_ >= resend_wait_) {
             last_resend_ = now;

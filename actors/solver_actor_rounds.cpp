@@ -46,7 +46,7 @@ void SolverActor::SendRoundPoses(std::uint64_t round) {
 }
 
 // Only the neighbours' rounds read a robot's round poses (TeamRounds::OnPoses drops the
-// others'): a broadcast made every solver of a 50-robot team decode every robot's poses.
+// others'): sent to them alone, no other solver of the team decodes them.
 void SolverActor::SendToNeighbours(const v1::PublicPoses& poses) {
     if (!rounds_) return;
     const auto message = transport::Pack(poses);

@@ -54,8 +54,9 @@ using EndpointHandler = std::function<void(transport::Message& message)>;
 
 /// Base class of every actor. A derived class creates its sockets and timers in `OnStart()`
 /// (which runs on the actor's thread: one socket per thread), and must call `Stop()` in its own
-/// destructor. The loop waits in zmq_poll on the watched sockets and a wake-up eventfd with a
-/// timeout equal to the next timer deadline, then runs the io_context's ready handlers.
+/// destructor. The loop waits in epoll on the watched sockets' ZMQ_FDs and a wake-up eventfd
+/// with a timeout equal to the next timer deadline, reads the sockets that signalled (and every
+/// socket at least every 250 ms), then runs the io_context's ready handlers.
 class Actor {
   public:
     /// `context` must outlive the actor; inproc edges need both ends on the same context.
@@ -109,7 +110,7 @@ class Actor {
 
     /// Polls a transport endpoint (which the derived class owns, creates in OnStart() and
     /// destroys in OnStop()) and calls `handler` for each valid message; counts `handled`.
-    /// Drains the endpoint's own queue too, which zmq_poll does not see.
+    /// Drains the endpoint's own queue too, which the socket's descriptor does not show.
     void WatchEndpoint(transport::Endpoint& endpoint, EndpointHandler handler);
 
     /// Polls a foreign socket by its libzmq handle and calls `handler` when it is readable.
@@ -118,6 +119,14 @@ class Actor {
     /// Calls `tick` every `period`, first one `period` from now, on a fixed cadence (a late
     /// tick does not shift the next ones; ticks missed entirely are skipped). Actor thread only.
     void Every(std::chrono::nanoseconds period, std::function<void()> tick);
+
+    /// Calls `tick` every `period` while it returns true (busy); after it returns false, every
+    /// `idle_period` (>= period) until the actor dispatches a message or a posted task, which
+    /// brings the next tick within `period` again. For ticks whose work comes with messages: an
+    /// idle actor of a large team in one process then wakes rarely (each wake-up polls all its
+    /// sockets). Actor thread only.
+    void EveryUntilIdle(std::chrono::nanoseconds period, std::chrono::nanoseconds idle_period,
+                        std::function<bool()> tick);
 
     /// Calls `task` once after `delay`. Actor thread only.
     void After(std::chrono::nanoseconds delay, std::function<void()> task);
@@ -144,6 +153,10 @@ class Actor {
     void DispatchEndpoint(WatchEntry& watch);
     long PollTimeoutMs() const;
     void ArmTimer(TimerEntry& timer);
+    void AddWatch(std::unique_ptr<WatchEntry> entry);
+    static bool Readable(const WatchEntry& watch);  ///< a message waits (ZMQ_EVENTS)
+    /// Idle timers (EveryUntilIdle) fire within their busy period again.
+    void WakeIdleTimers();
     void Wake();
     void DrainWake();
     void RunGuarded(const std::function<void()>& fn);
@@ -154,6 +167,7 @@ class Actor {
     std::string name_;
     zmq::context_t& context_;
     int wake_fd_ = -1;
+    int epoll_fd_ = -1;  ///< the run's epoll set: the wake-up eventfd and each watch's ZMQ_FD
     std::thread thread_;
     std::thread::id thread_id_;
     std::atomic<bool> stop_requested_{false};

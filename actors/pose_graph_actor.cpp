@@ -15,6 +15,7 @@ namespace certislam::actors {
 namespace {
 
 constexpr std::chrono::milliseconds kPollPeriod{5};   ///< subscriber check
+constexpr std::chrono::milliseconds kIdlePoll{100};   ///< ... once block and edges went out
 constexpr std::chrono::milliseconds kEndPeriod{500};  ///< end markers repeated
 /// Version of every edge (a matcher's verdict version): one, as a file's edges never change.
 constexpr std::int64_t kEdgeVersion = 1;
@@ -36,7 +37,8 @@ PoseGraphActor::PoseGraphActor(zmq::context_t& context, TeamWiring wiring, slam:
 void PoseGraphActor::OnStart() {
     keyframes_out_ = &OpenServer(Edge::kKeyframes);
     loops_out_ = &OpenServer(Edge::kLoops);
-    Every(kPollPeriod, [this] {
+    // Once sent, only a restarted reader needs them again: checked less often.
+    EveryUntilIdle(kPollPeriod, kIdlePoll, [this] {
         // The local solver reads the keyframe stream; every robot's solver the loop stream.
         const std::size_t local = keyframes_out_->subscribers();
         if (local >= 1 && local > keyframe_subscribers_) {
@@ -49,6 +51,7 @@ void PoseGraphActor::OnStart() {
             SendInterRobotEdges();
         }
         finished_ = block_sent_ && edges_sent_;
+        return !finished_;
     });
     Every(kEndPeriod, [this] { SendEnds(); });
 }

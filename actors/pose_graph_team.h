@@ -37,12 +37,16 @@ struct PoseGraphTeamResult {
     double certificate_seconds = 0.0;  ///< wall seconds of those rounds (robot 0's share)
     int escapes = 0;                   ///< saddle escapes sent (anchor)
     int rank = 0;                      ///< robot 0's relaxation rank at the end
-    /// "synchronous": every robot's RBCD++ rounds reached the tolerance; "asynchronous": some
-    /// robot gave up its rounds (or never ran them) and went on with asynchronous updates.
+    /// "synchronous": every robot's RBCD++ rounds (or their finish) reached the tolerance;
+    /// "asynchronous": some robot gave up its rounds (or never ran them) and went on with
+    /// asynchronous updates; "rounds running": none did, but some robot's rounds or finish had
+    /// not converged yet (a timeout in the rounds).
     std::string solver_mode = "asynchronous";
     int restarts = 0;  ///< adaptive restarts of the rounds (robot 0's count)
     /// Overlapping sweeps' proposals the robots dropped (summed; SolverSnapshot)
     std::uint64_t rejected_proposals = 0;
+    /// Round messages re-sent because a stalled robot asked for them (summed; SolverSnapshot)
+    std::uint64_t round_resends = 0;
     int overlap_ends = 0;  ///< runs of the rounds whose overlap a rise of f ended (robot 0's count)
     int fallbacks = 0;     ///< certificate rounds the anchor checked centrally instead
     /// How far the poses leave the plane z = 0 (a planar graph's lift, slam::LiftPlanar): the
@@ -64,13 +68,23 @@ struct PoseGraphTeamResult {
     double finish_seconds = 0.0;       ///< robot 0's wall time in the finish
 };
 
+/// solver_mode's value while the rounds run (PoseGraphTeamResult::solver_mode).
+inline constexpr const char* kRoundsRunning = "rounds running";
+
+/// solver_mode from every robot's rounds converged (`sync`), and every robot's converged or
+/// still running (`in_rounds`: none went asynchronous).
+inline std::string SolverMode(bool sync, bool in_rounds) {
+    if (sync) return "synchronous";
+    return in_rounds ? kRoundsRunning : "asynchronous";
+}
+
 /// What `nodes` (the anchor first; PoseGraphNode or RobotNode) have done so far: counters summed
 /// or maxed over them, the anchor's report and certificate counters; `done` and `seconds` are
 /// left to the caller.
 template <typename Node>
 PoseGraphTeamResult SummariseNodes(const std::vector<const Node*>& nodes) {
     PoseGraphTeamResult out;
-    bool sync = true;
+    bool sync = true, in_rounds = true;
     for (const auto& node : nodes) {
         const SolverSnapshot s = node->Snapshot();
         out.iterations_by_robot[node->robot()] = s.steps;
@@ -82,6 +96,7 @@ PoseGraphTeamResult SummariseNodes(const std::vector<const Node*>& nodes) {
         }
         out.escapes += node->Certifier().Escapes();
         out.rejected_proposals += s.rejected_proposals;
+        out.round_resends += s.round_resends;
         out.finish_dropped += s.finish_dropped + s.finish.dropped;
         for (const auto& pose : s.trajectory) {
             const Eigen::Isometry3d& T = pose.T_world_body;
@@ -89,9 +104,11 @@ PoseGraphTeamResult SummariseNodes(const std::vector<const Node*>& nodes) {
             const double cos_tilt = std::clamp(T.linear()(2, 2), -1.0, 1.0);
             out.out_of_plane_rad = std::max(out.out_of_plane_rad, std::acos(cos_tilt));
         }
-        sync = sync && s.rounds_converged && !s.rounds_gave_up;
+        const bool converged = s.rounds_converged && !s.rounds_gave_up;
+        sync = sync && converged;
+        in_rounds = in_rounds && (converged || s.rounds_running);
     }
-    out.solver_mode = sync ? "synchronous" : "asynchronous";
+    out.solver_mode = SolverMode(sync, in_rounds);
     if (nodes.empty()) return out;
     const Node& anchor = *nodes.front();
     const SolverSnapshot s = anchor.Snapshot();

@@ -13,8 +13,10 @@
 namespace certislam::actors {
 void SolverActorConfig::Validate() const {
     solver.Validate();
-    if (tick.count() <= 0 || heartbeat.count() <= 0 || bundle_period.count() <= 0) {
-        throw std::invalid_argument("SolverActorConfig.tick/heartbeat/bundle_period: must be > 0");
+    if (tick.count() <= 0 || heartbeat.count() <= 0 || bundle_period.count() <= 0 ||
+        resend_spacing.count() <= 0) {
+        throw std::invalid_argument(
+            "SolverActorConfig.tick/heartbeat/bundle_period/resend_spacing: must be > 0");
     }
     if (rounds_stall.count() <= 0) {
         throw std::invalid_argument("SolverActorConfig.rounds_stall = " +
@@ -50,7 +52,11 @@ void SolverActor::OnStart() {
     bundle_out_ = &OpenServer(Edge::kBundle);
     Subscribe();
     if (!config_.log_path.empty()) Replay();
-    Every(config_.tick, [this] { Tick(); });
+    EveryUntilIdle(config_.tick, std::max<std::chrono::nanoseconds>(config_.tick, kIdleTick),
+                   [this] {
+                       Tick();
+                       return TickDue();
+                   });
     Every(config_.heartbeat, [this] { Heartbeat(); });
     UpdateSnapshot();
 }
@@ -105,6 +111,10 @@ void SolverActor::Subscribe() {
         if (status->team_round() > 0) {
             if (config_.synchronous && current) OnRoundSums(*status);
             return true;
+        }
+        if (status->round_wants_size() > 0 && config_.synchronous && current &&
+            !AnswerWants(*status)) {
+            return false;
         }
         team_cost_[int(status->header().robot_id())] = status->cost();
         return true;
@@ -283,6 +293,11 @@ void SolverActor::Tick() {
     UpdateSnapshot();
 }
 
+// The rounds and the finish move with messages (their handlers act at once); asynchronous steps
+// with work_, which messages set; a publish waits for its period. The rest (bundles, a new
+// reader, the stall clock) can wait for an idle tick.
+bool SolverActor::TickDue() const { return publish_pending_ || (work_ && !InRounds()); }
+
 void SolverActor::EndRefinementWhenSpent(const certify::SolverStepResult& step) {
     if (tolerance_scale_ >= 1.0) return;
     // A gradient that cannot reach the refined tolerance (round-off, stale neighbours) must not
@@ -314,7 +329,7 @@ void SolverActor::Publish() {
     SendStatus();
 }
 
-void SolverActor::SendStatus() {
+void SolverActor::SendStatus(const std::vector<certify::RoundWant>& wants) {
     v1::SolverStatus status;
     *status.mutable_header() = MakeHeader(RobotId(), NextSequence(), 0);
     status.set_iteration(steps_);
@@ -324,6 +339,13 @@ void SolverActor::SendStatus() {
     status.set_cost(team_cost_[RobotId()]);
     status.set_gradient_norm(grad_norm_);
     status.set_num_poses(static_cast<std::uint32_t>(state_.NumPoses()));
+    status.set_staircase_level(static_cast<std::uint32_t>(state_.StaircaseLevel()));
+    for (const auto& w : wants) {
+        auto* want = status.add_round_wants();
+        want->set_robot(static_cast<std::uint32_t>(w.robot));
+        want->set_team_round(w.round + 1);
+        want->set_sums(w.sums);
+    }
     StampSession(&status);
     Send(*poses_out_, transport::Pack(status), true);
 }
@@ -333,20 +355,7 @@ void SolverActor::Heartbeat() {
     const bool in_rounds = InRounds() && !rounds_converged_;
     if (in_rounds && finish_) return;  // the finish's messages are never lost (reliable edges)
     if (in_rounds) {
-        // Rounds stalled for a heartbeat: a peer may have joined late or lost a message; re-send
-        // the last two rounds' messages (receivers keep one copy per round), at a doubling
-        // interval up to kMaxResendWait while no round progresses: a peer that is only slow
-        // (round 0 places the robots one after another) must not be flooded by the waiting ones.
-        const auto now = std::chrono::steady_clock::now();
-        if (now - last_round_progress_ >= config_.heartbeat && now - last_resend_ >= resend_wait_) {
-            last_resend_ = now;
-            resend_wait_ = std::min(2 * resend_wait_, std::max(config_.heartbeat, kMaxResendWait));
-            for (const auto& p : last_round_poses_) SendToNeighbours(p);
-            for (const auto& s : last_round_sums_) Send(*poses_out_, transport::Pack(s), true);
-            // Nothing sent in this session yet (a higher robot waits for its lower neighbours):
-            // a status tells the peers this solver's session and incarnation.
-            if (last_round_poses_.empty() && last_round_sums_.empty()) SendStatus();
-        }
+        RequestStalledRound();
         return;
     }
     Publish();
@@ -426,7 +435,7 @@ SolverActor::SnapshotKey SolverActor::KeyOfSnapshot() const {
             publish_pending_, IsFinal(), state_.StaircaseLevel(), grad_norm_, changed_,
             // Per trust-region step, not per exchange: a snapshot rounds the whole trajectory,
             // and the finish exchanges far more often than it changes (not until it ends).
-            finish_ ? std::uint64_t(finish_->Progress().iterations) : 0};
+            finish_ ? std::uint64_t(finish_->Progress().iterations) : 0, round_resends_};
 }
 
 void SolverActor::UpdateSnapshot() {
@@ -464,11 +473,13 @@ void SolverActor::UpdateSnapshot() {
     s.changed = changed_;
     s.edges = state_.OwnEdges();
     s.team_rounds = rounds_swept_;
+    s.round_resends = round_resends_;
     s.restarts = rounds_restarts_ + (rounds_ ? rounds_->Restarts() : 0);
     s.rejected_proposals = rounds_rejected_ + (rounds_ ? rounds_->RejectedProposals() : 0);
     s.overlap_ends = rounds_overlap_ends_ + (rounds_ && rounds_->OverlapEndedAt() ? 1 : 0);
     s.rounds_converged = rounds_converged_;
     s.rounds_gave_up = rounds_gave_up_;
+    s.rounds_running = InRounds() && !rounds_converged_;
     s.restored = restored_;
     s.round_session = round_session_;
     s.finish = FinishTotals();

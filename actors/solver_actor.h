@@ -61,6 +61,10 @@ struct SolverActorConfig {
     /// team (peers silent), give up: asynchronous updates take over, as after rounds.max_rounds;
     /// > 0.
     std::chrono::milliseconds rounds_stall{20000};
+    /// A peer's request of a kept round message (a stalled round) is answered this long after
+    /// the message went out at the earliest, then at doubling intervals per peer: a request
+    /// sooner is most likely for a copy still in flight on a loaded host. > 0.
+    std::chrono::milliseconds resend_spacing{1000};
     /// Synchronous mode: from this round on, rounds whose linear rate projects their tolerance
     /// beyond rounds.max_rounds (TeamRoundsConfig::hand_over_after), and rounds that reach
     /// max_rounds, hand the team to its second-order finish (certify/pipeline/team_finish.h: a
@@ -93,6 +97,9 @@ struct SolverSnapshot {
     std::vector<slam::LoopClosure> edges;
     std::uint64_t team_rounds = 0;  ///< synchronous rounds swept (SolverActorConfig::synchronous)
     int restarts = 0;               ///< adaptive restarts of those rounds
+    /// Round messages this solver re-sent because a stalled peer asked for them (SolverStatus
+    /// round_wants): one per message, to that peer alone
+    std::uint64_t round_resends = 0;
     /// Overlapping sweeps' proposals of own poses dropped (TeamRounds::SetProposable): a
     /// neighbour proposed a pose its domain cannot hold, or a block that is not a pose
     std::uint64_t rejected_proposals = 0;
@@ -100,6 +107,8 @@ struct SolverSnapshot {
     int overlap_ends = 0;
     bool rounds_converged = false;  ///< the rounds reached the team's gradient tolerance
     bool rounds_gave_up = false;    ///< the rounds hit max_rounds: asynchronous updates took over
+    /// In its synchronous rounds (or their finish), not converged yet: no asynchronous step ran
+    bool rounds_running = false;
     /// The certified state came from the durable log's checkpoint (a restart after the team
     /// certified), not from a round of this run.
     bool restored = false;
@@ -177,9 +186,18 @@ class SolverActor final : public NodeActor {
         proto->set_round_session(round_session_);
         proto->set_incarnation(incarnation_);
     }
-    void SendStatus();
+    /// The solver's status; `wants`: a stalled round's request (TeamRounds::Wants).
+    void SendStatus(const std::vector<certify::RoundWant>& wants = {});
+    /// A peer's request of round messages: those of this robot that it kept go to that peer
+    /// alone. False when the request is malformed.
+    bool AnswerWants(const v1::SolverStatus& request);
+    /// A stalled round's request (Heartbeat): SendStatus with what the rounds wait for.
+    void RequestStalledRound();
     void Heartbeat();
     void SendBundle();
+    /// The next tick is due within `tick` (EveryUntilIdle); otherwise within kIdleTick.
+    bool TickDue() const;
+    static constexpr std::chrono::milliseconds kIdleTick{25};
     static constexpr std::chrono::milliseconds kFirstResend{std::chrono::seconds(1)};
     static constexpr std::chrono::milliseconds kLongestBundleWait{std::chrono::seconds(4)};
     /// No asynchronous step moved the block for bundle_period.
@@ -193,7 +211,7 @@ class SolverActor final : public NodeActor {
     /// a running finish's counters show at each of its trust-region steps.
     using SnapshotKey =
         std::tuple<std::uint64_t, std::uint64_t, std::uint64_t, bool, bool, bool, bool, bool, int,
-                   double, std::chrono::steady_clock::time_point, std::uint64_t>;
+                   double, std::chrono::steady_clock::time_point, std::uint64_t, std::uint64_t>;
     SnapshotKey KeyOfSnapshot() const;
     void Changed();
     void Replay();           ///< durable log: loops, and the last checkpoint kept for later
@@ -260,14 +278,28 @@ class SolverActor final : public NodeActor {
     std::optional<certify::RoundBoundary> boundary_;  ///< Boundary(), of the current graph
     bool overlap_mismatch_logged_ = false;  ///< a peer's other overlap depth was logged (once)
     bool proposals_logged_ = false;         ///< a dropped proposal was logged (once per actor)
-    std::vector<certify::PoseBlocks> early_poses_;   ///< round poses heard before rounds_ began
-    std::vector<v1::SolverStatus> early_sums_;       ///< round sums heard before rounds_ began
-    std::vector<v1::PublicPoses> last_round_poses_;  ///< last two rounds', re-sent on a stall
-    std::vector<v1::SolverStatus> last_round_sums_;  ///< last two rounds', re-sent on a stall
+    std::vector<certify::PoseBlocks> early_poses_;  ///< round poses heard before rounds_ began
+    std::vector<v1::SolverStatus> early_sums_;      ///< round sums heard before rounds_ began
+    /// A round message kept for a stalled peer's request, and when each peer may have it again
+    /// (SolverActorConfig::resend_spacing).
+    template <typename T>
+    struct Kept {
+        T message;
+        std::chrono::steady_clock::time_point sent;
+        /// peer -> (earliest next copy, the wait after it)
+        std::map<int, std::pair<std::chrono::steady_clock::time_point, std::chrono::milliseconds>>
+            again;
+    };
+    /// Sends `kept` to `peer` if its spacing allows; true when sent.
+    template <typename T>
+    bool SendAgain(Kept<T>* kept, int peer, std::chrono::steady_clock::time_point now);
+    std::vector<Kept<v1::PublicPoses>> last_round_poses_;  ///< last two rounds', for requests
+    std::vector<Kept<v1::SolverStatus>> last_round_sums_;  ///< last two rounds', for requests
+    std::uint64_t round_resends_ = 0;                      ///< round messages re-sent on request
     std::chrono::steady_clock::time_point last_round_progress_{};
-    std::chrono::steady_clock::time_point last_resend_{};  ///< last re-send of a stalled round
-    std::chrono::milliseconds resend_wait_{200};           ///< the next re-send's wait (doubling)
-    /// Re-sends of a stalled round are this far apart at most (Heartbeat).
+    std::chrono::steady_clock::time_point last_resend_{};  ///< last request of a stalled round
+    std::chrono::milliseconds resend_wait_{200};           ///< the next request's wait (doubling)
+    /// Requests of a stalled round are this far apart at most (Heartbeat).
     static constexpr std::chrono::milliseconds kMaxResendWait{3200};
     /// The rounds' stall allowance per robot of the team (RoundsStall).
     static constexpr std::chrono::milliseconds kStallPerRobot{1000};

@@ -14,9 +14,9 @@ namespace {
 /// Keeps a round's message and the one before it: a robot can be one round behind its peers (it
 /// decides a round only with every robot's sums of it), so a message it lost in the round before
 /// the sender's last is still needed, and the sender re-sends only what it keeps.
-template <typename T>
-void KeepLastTwo(std::vector<T>* kept, T message) {
-    kept->push_back(std::move(message));
+template <typename K, typename T>
+void KeepLastTwo(std::vector<K>* kept, T message) {
+    kept->push_back(K{std::move(message), std::chrono::steady_clock::now(), {}});
     if (kept->size() > 2) kept->erase(kept->begin());
 }
 
@@ -67,6 +67,59 @@ void SolverActor::SendRoundSums(std::uint64_t round, double cost, double grad_no
     StampSession(&status);
     Send(*poses_out_, transport::Pack(status), true);
     KeepLastTwo(&last_round_sums_, std::move(status));
+}
+
+// Rounds stalled for a heartbeat: a peer may have joined late or a message may be lost. The
+// status names what this robot's rounds wait for, and its senders re-send only that, to it alone
+// (AnswerWants): a pushed re-send of every kept round to every neighbour would mostly repeat
+// what they have. At a doubling interval up to kMaxResendWait while no round progresses (a round
+// waits for its colours one after another). The status also tells the peers this solver's
+// session and incarnation.
+void SolverActor::RequestStalledRound() {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_round_progress_ < config_.heartbeat || now - last_resend_ < resend_wait_) return;
+    last_resend_ = now;
+    resend_wait_ = std::min(2 * resend_wait_, std::max(config_.heartbeat, kMaxResendWait));
+    SendStatus(rounds_ ? rounds_->Wants() : std::vector<certify::RoundWant>{});
+}
+
+bool SolverActor::AnswerWants(const v1::SolverStatus& request) {
+    const auto& team = Wiring().robots;
+    const int from = int(request.header().robot_id());
+    // A round waits for one message of each robot at most.
+    if (std::size_t(request.round_wants_size()) > team.size()) return false;
+    if (from == RobotId() || std::find(team.begin(), team.end(), from) == team.end()) return true;
+    const auto level = request.staircase_level();
+    const auto now = std::chrono::steady_clock::now();
+    const auto answer = [&](auto* kept, const v1::RoundWant& want) {
+        for (auto& k : *kept) {
+            if (k.message.team_round() == want.team_round() &&
+                k.message.staircase_level() == level && SendAgain(&k, from, now)) {
+                ++round_resends_;
+            }
+        }
+    };
+    for (const auto& want : request.round_wants()) {
+        if (want.robot() != std::uint32_t(RobotId())) continue;
+        if (want.sums()) {
+            answer(&last_round_sums_, want);
+        } else if (rounds_ && rounds_->Neighbours().count(from) > 0) {  // nobody else reads them
+            answer(&last_round_poses_, want);
+        }
+    }
+    return true;
+}
+
+template <typename T>
+bool SolverActor::SendAgain(Kept<T>* kept, int peer, std::chrono::steady_clock::time_point now) {
+    auto& [next, wait] =
+        kept->again.try_emplace(peer, kept->sent + config_.resend_spacing, config_.resend_spacing)
+            .first->second;
+    if (now < next) return false;
+    if (!SendToRobot(*poses_out_, peer, transport::Pack(kept->message), true)) return false;
+    wait *= 2;
+    next = now + wait;
+    return true;
 }
 
 void SolverActor::OnRoundSums(const v1::SolverStatus& status) {

@@ -255,7 +255,7 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
     actors::PoseGraphTeamResult r;
     if (reports.empty()) throw std::runtime_error("no robot reports");
     r.done = true;
-    bool sync = true;
+    bool sync = true, in_rounds = true;
     for (const auto& j : reports) {
         const int robot = Field<int>(j, "robot", -1);
         r.done = r.done && Field<bool>(j, "certified", robot);
@@ -272,13 +272,16 @@ actors::PoseGraphTeamResult MergeRobotReports(const std::vector<nlohmann::json>&
         r.seconds = std::max(r.seconds, Field<double>(j, "seconds", robot));
         r.escapes += Field<int>(j, "escapes", robot);
         r.rejected_proposals += Field<std::uint64_t>(j, "rejected_proposals", robot);
+        r.round_resends += Field<std::uint64_t>(j, "round_resends", robot);
         r.finish_dropped += Field<nlohmann::json>(j, "finish", robot).value("dropped", 0ull);
-        sync = sync && Field<std::string>(j, "solver_mode", robot) == "synchronous";
+        const auto mode = Field<std::string>(j, "solver_mode", robot);
+        sync = sync && mode == "synchronous";
+        in_rounds = in_rounds && (mode == "synchronous" || mode == actors::kRoundsRunning);
         const auto plane = Field<nlohmann::json>(j, "out_of_plane", robot);
         r.out_of_plane_m = std::max(r.out_of_plane_m, plane.value("m", 0.0));
         r.out_of_plane_rad = std::max(r.out_of_plane_rad, plane.value("rad", 0.0));
     }
-    r.solver_mode = sync ? "synchronous" : "asynchronous";
+    r.solver_mode = actors::SolverMode(sync, in_rounds);
     const nlohmann::json& anchor = reports.front();
     const int id = Field<int>(anchor, "robot", -1);
     r.cost_offset = Field<double>(anchor, "cost_offset", id);

@@ -118,6 +118,7 @@ std::string WriteTeamOutputs(const std::string& dir, const std::vector<int>& rob
         robot["rounds"] = {{"swept", s.team_rounds},
                            {"restarts", s.restarts},
                            {"rejected_proposals", s.rejected_proposals},
+                           {"resends", s.round_resends},
                            {"overlap_ends", s.overlap_ends},
                            {"converged", s.rounds_converged},
                            {"gave_up", s.rounds_gave_up}};

@@ -119,12 +119,21 @@ void TeamRounds::OnSums(int robot, std::uint64_t round, double cost, double grad
 }
 
 bool TeamRounds::HaveNeighbour(int j, std::uint64_t round, bool lower_only) const {
+    return !MissingRound(j, round, lower_only).has_value();
+}
+
+std::optional<std::uint64_t> TeamRounds::MissingRound(int j, std::uint64_t round,
+                                                      bool lower_only) const {
     const auto it = nbr_.find(j);
-    if (it == nbr_.end()) return j > robot_ && lower_only && round == 0;
-    if (Earlier(j, round) || !lower_only) return it->second.count(round) > 0;
-    if (round == 0) return true;  // placement waits for lower neighbours only
-    return it->second.count(accepted_) > 0 &&
-           (beta_ == 0.0 || it->second.count(accepted_prev_) > 0);
+    const auto lacks = [&](std::uint64_t r) { return it == nbr_.end() || !it->second.count(r); };
+    if (Earlier(j, round) || !lower_only) {
+        if (lacks(round)) return round;
+        return std::nullopt;
+    }
+    if (round == 0) return std::nullopt;  // placement waits for lower neighbours only
+    if (lacks(accepted_)) return accepted_;
+    if (beta_ != 0.0 && lacks(accepted_prev_)) return accepted_prev_;
+    return std::nullopt;
 }
 
 bool TeamRounds::HaveNeighbours(std::uint64_t round, bool lower_only) const {
@@ -132,32 +141,36 @@ bool TeamRounds::HaveNeighbours(std::uint64_t round, bool lower_only) const {
                        [&](int j) { return HaveNeighbour(j, round, lower_only); });
 }
 
-std::string TeamRounds::Waiting() const {
+std::vector<RoundWant> TeamRounds::Wants() const {
+    std::vector<RoundWant> out;
     if (converged_ || handed_over_ || current_ > static_cast<std::uint64_t>(config_.max_rounds)) {
-        return "";
+        return out;
     }
     const bool sweep = own_.count(current_) == 0;
-    std::vector<int> missing;
-    const char* what = "poses";
     if (sweep || !evaluated_) {
         for (int j : neighbours_) {
-            if (!HaveNeighbour(j, current_, sweep)) missing.push_back(j);
+            if (const auto r = MissingRound(j, current_, sweep)) out.push_back({j, *r, false});
         }
-    } else {
-        what = "sums";
-        const auto it = sums_.find(current_);
-        for (int r : robots_) {
-            if (it == sums_.end() || it->second.count(r) == 0) missing.push_back(r);
-        }
+        return out;
     }
-    if (missing.empty()) return "";
-    std::string out = "round " + std::to_string(current_) + ": the " + what + " of robot";
-    out += missing.size() > 1 ? "s" : "";
-    for (size_t k = 0; k < missing.size() && k < kWaitingListed; ++k) {
-        out += (k == 0 ? " " : ", ") + std::to_string(missing[k]);
+    const auto it = sums_.find(current_);
+    for (int r : robots_) {
+        if (it == sums_.end() || it->second.count(r) == 0) out.push_back({r, current_, true});
     }
-    if (missing.size() > kWaitingListed) {
-        out += " and " + std::to_string(missing.size() - kWaitingListed) + " more";
+    return out;
+}
+
+std::string TeamRounds::Waiting() const {
+    const auto wants = Wants();
+    if (wants.empty()) return "";
+    std::string out = "round " + std::to_string(current_) + ": the " +
+                      (wants.front().sums ? "sums" : "poses") + " of robot";
+    out += wants.size() > 1 ? "s" : "";
+    for (size_t k = 0; k < wants.size() && k < kWaitingListed; ++k) {
+        out += (k == 0 ? " " : ", ") + std::to_string(wants[k].robot);
+    }
+    if (wants.size() > kWaitingListed) {
+        out += " and " + std::to_string(wants.size() - kWaitingListed) + " more";
     }
     return out;
 }

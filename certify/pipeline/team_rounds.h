@@ -68,6 +68,16 @@ struct RoundAction {
     bool overlap = false;
 };
 
+/// A message a robot's rounds wait for: robot `robot`'s poses (or sums) of round `round`.
+struct RoundWant {
+    int robot = 0;
+    std::uint64_t round = 0;
+    bool sums = false;  ///< its share of f and gradient norm; false: its poses
+    bool operator==(const RoundWant& o) const {
+        return robot == o.robot && round == o.round && sums == o.sums;
+    }
+};
+
 /// One robot's synchronous RBCD++ bookkeeping (plain data in and out).
 class TeamRounds {
   public:
@@ -124,8 +134,12 @@ class TeamRounds {
     /// The rounds ended early: their rate projected rel_grad_tol beyond max_rounds
     /// (TeamRoundsConfig::hand_over_after).
     bool HandedOver() const { return handed_over_; }
-    /// What Next() waits for, for a log line ("round 3: the sums of robots 7, 9"); empty when it
-    /// does not wait for a message (converged, given up, or an action is due).
+    /// The messages Next() waits for, in robot order: a stalled robot asks their senders for
+    /// them (the senders keep their last two rounds' messages); empty when it does not wait for
+    /// a message (converged, given up, or an action is due). A sweep waits for its earlier
+    /// neighbours' poses of the round and its later ones' of the accepted rounds it extrapolates.
+    std::vector<RoundWant> Wants() const;
+    /// Wants() for a log line ("round 3: the sums of robots 7, 9").
     std::string Waiting() const;
     /// Robots Waiting() lists by id at most (the rest counted).
     static constexpr std::size_t kWaitingListed = 8;
@@ -143,6 +157,8 @@ class TeamRounds {
     /// Neighbour j's poses that the sweep (`lower_only`) or the evaluation of `round` needs are
     /// in.
     bool HaveNeighbour(int j, std::uint64_t round, bool lower_only) const;
+    /// The round of neighbour j's poses that HaveNeighbour misses (none when it has them).
+    std::optional<std::uint64_t> MissingRound(int j, std::uint64_t round, bool lower_only) const;
     bool HaveNeighbours(std::uint64_t round, bool lower_only) const;
     /// Own poses that an earlier neighbour's overlapping sweep of `round` proposed replace those
     /// of the start (multiplicative Schwarz: the sweep goes on from them); of two proposals of

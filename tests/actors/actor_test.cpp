@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstring>
+#include <functional>
 #include <future>
 #include <memory>
 #include <mutex>
@@ -270,6 +272,65 @@ TEST(Actor, TimerFiresAtTheExpectedCadence) {
     const ActorCounters counters = actor.Counters();
     EXPECT_EQ(counters.handler_errors, 1u);  // the throwing tick did not stop the timer
     EXPECT_EQ(counters.timer_fires, actor.ticks.size() + 1);
+}
+
+/// A tick busy for its first kBusyTicks, then idle; a message on its pair socket wakes it.
+class IdleTickActor final : public Actor {
+  public:
+    explicit IdleTickActor(zmq::context_t& context) : Actor("idle", context) {}
+    ~IdleTickActor() override { Stop(); }
+    static constexpr int kBusyTicks = 3;
+    static constexpr auto kIdlePeriod = std::chrono::seconds(3);
+    std::atomic<int> ticks{0};
+    std::atomic<int> messages{0};
+
+  protected:
+    void OnStart() override {
+        socket_.emplace(Context(), zmq::socket_type::pair);
+        socket_->set(zmq::sockopt::linger, 0);
+        socket_->bind("inproc://idle");
+        WatchReadable(socket_->handle(), [this] {
+            zmq::message_t msg;
+            while (socket_->recv(msg, zmq::recv_flags::dontwait)) ++messages;
+        });
+        EveryUntilIdle(kTimerPeriod, kIdlePeriod, [this] { return ++ticks < kBusyTicks; });
+    }
+    void OnStop() override { socket_.reset(); }
+
+  private:
+    std::optional<zmq::socket_t> socket_;
+};
+
+bool WaitUntil(const std::function<bool()>& done, std::chrono::milliseconds timeout) {
+    const auto until = steady_clock::now() + timeout;
+    while (!done()) {
+        if (steady_clock::now() > until) return false;
+        std::this_thread::sleep_for(milliseconds(2));
+    }
+    return true;
+}
+
+// EveryUntilIdle: busy ticks at the period, then none for far longer than many periods (the idle
+// period is seconds), until a message comes: the next tick follows within the busy period (plus
+// scheduling noise), not at the end of the idle one.
+TEST(Actor, AnIdleTimerSleepsUntilAMessageComes) {
+    zmq::context_t context;
+    IdleTickActor actor(context);
+    actor.Start();
+    ASSERT_TRUE(
+        WaitUntil([&] { return actor.ticks >= IdleTickActor::kBusyTicks; }, kTimerPeriod * 50));
+    std::this_thread::sleep_for(kTimerPeriod * 20);
+    EXPECT_EQ(actor.ticks, IdleTickActor::kBusyTicks) << "an idle timer ticked at its busy period";
+    zmq::socket_t peer(context, zmq::socket_type::pair);
+    peer.set(zmq::sockopt::linger, 0);
+    peer.connect("inproc://idle");
+    const auto sent = steady_clock::now();
+    peer.send(zmq::str_buffer("wake"), zmq::send_flags::none);
+    ASSERT_TRUE(
+        WaitUntil([&] { return actor.ticks > IdleTickActor::kBusyTicks; }, milliseconds(2000)));
+    EXPECT_LT(steady_clock::now() - sent, kMaxTimerLateness) << "the message did not wake it";
+    EXPECT_EQ(actor.messages, 1);
+    actor.Stop();
 }
 
 /// Owns a socket itself (as a transport endpoint would) and polls it by handle.

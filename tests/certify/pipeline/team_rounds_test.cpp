@@ -441,31 +441,45 @@ TEST(TeamRounds, OverlapDepthOutOfRangeIsNamed) {
     }
 }
 
-// Waiting() names what Next() waits for, for the solver's stall line: round 0's placement waits
-// for the lower neighbour's poses, its evaluation for the higher one's, its decision for every
-// other robot's sums; nothing once every action is due.
+// Wants() names what Next() waits for (a stalled robot asks their senders for them), Waiting()
+// says it in the solver's stall line: round 0's placement waits for the lower neighbour's poses,
+// its evaluation for the higher one's, its decision for every other robot's sums; a sweep for
+// its earlier neighbour's poses of the round (the later one's of round 0 are in); nothing once
+// every action is due.
 TEST(TeamRounds, WaitingNamesTheMissingPosesAndSums) {
     TeamRounds rounds(1, {0, 1, 2, 3}, {0, 2}, TeamRoundsConfig{});
-    const auto poses_of = [](int robot) {
+    const auto poses_of = [](int robot, int color) {
         PoseBlocks p;
         p.ids = {slam::PoseId{robot, 0}};
         p.blocks = Eigen::MatrixXd::Identity(5, 4);
+        p.sweep_color = color;
         return p;
     };
+    using W = std::vector<RoundWant>;
     EXPECT_EQ(rounds.Next().kind, RoundAction::Kind::kWait);
+    EXPECT_EQ(rounds.Wants(), (W{{0, 0, false}}));
     EXPECT_EQ(rounds.Waiting(), "round 0: the poses of robot 0");
-    rounds.OnPoses(0, 0, poses_of(0));
+    rounds.OnPoses(0, 0, poses_of(0, 0));
+    EXPECT_TRUE(rounds.Wants().empty());
     EXPECT_EQ(rounds.Waiting(), "");  // the placement is due
     ASSERT_EQ(rounds.Next().kind, RoundAction::Kind::kAlign);
-    rounds.SweepDone(0, poses_of(1).blocks);
+    rounds.SweepDone(0, poses_of(1, 1).blocks);
     EXPECT_EQ(rounds.Next().kind, RoundAction::Kind::kWait);
+    EXPECT_EQ(rounds.Wants(), (W{{2, 0, false}}));
     EXPECT_EQ(rounds.Waiting(), "round 0: the poses of robot 2");
-    rounds.OnPoses(2, 0, poses_of(2));
+    rounds.OnPoses(2, 0, poses_of(2, 2));  // colour 2: sweeps after robot 1 (colour 1)
     ASSERT_EQ(rounds.Next().kind, RoundAction::Kind::kEvaluate);
     rounds.OnSums(1, 0, 1.0, 1.0);
     rounds.OnSums(2, 0, 1.0, 1.0);
     EXPECT_EQ(rounds.Next().kind, RoundAction::Kind::kWait);
+    EXPECT_EQ(rounds.Wants(), (W{{0, 0, true}, {3, 0, true}}));
     EXPECT_EQ(rounds.Waiting(), "round 0: the sums of robots 0, 3");
+    rounds.OnSums(0, 0, 1.0, 1.0);
+    rounds.OnSums(3, 0, 1.0, 1.0);
+    EXPECT_EQ(rounds.Next().kind, RoundAction::Kind::kWait);
+    ASSERT_EQ(rounds.SweepColor(), 1);
+    EXPECT_EQ(rounds.Wants(), (W{{0, 1, false}}));
+    EXPECT_EQ(rounds.Waiting(), "round 1: the poses of robot 0");
 }
 
 }  // namespace

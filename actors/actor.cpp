@@ -41,6 +41,8 @@ struct Actor::WatchEntry {
     transport::Endpoint* endpoint = nullptr;  ///< set for `WatchEndpoint`
     EndpointHandler on_endpoint;              ///< for `WatchEndpoint`
     bool due = false;                         ///< to be checked at this wake-up (Loop)
+    /// The actor may send on it too (not SUB or PULL): a send takes the descriptor's signal
+    bool two_way = true;
 };
 
 struct Actor::TimerEntry {
@@ -150,16 +152,18 @@ void Actor::WatchReadable(void* zmq_socket_handle, ReadableHandler handler) {
 }
 
 // The loop waits on each socket's ZMQ_FD through epoll, so a wake-up costs the sockets that
-// signalled, not all of them: zmq_poll checks every socket with two system calls, and a solver of
-// a 50-robot team in one process watches about a hundred. The descriptor signals that the
-// socket's state may have changed; ZMQ_EVENTS says whether a message waits.
+// signalled, not all of them: zmq_poll checks every socket with two system calls, and a solver
+// watches a socket per peer and stream. The descriptor signals that the socket's state may have
+// changed; ZMQ_EVENTS says whether a message waits.
 void Actor::AddWatch(std::unique_ptr<WatchEntry> entry) {
-    int fd = -1;
-    std::size_t size = sizeof(fd);
-    if (zmq_getsockopt(entry->handle, ZMQ_FD, &fd, &size) != 0) {
+    int fd = -1, type = -1;
+    std::size_t size = sizeof(fd), type_size = sizeof(type);
+    if (zmq_getsockopt(entry->handle, ZMQ_FD, &fd, &size) != 0 ||
+        zmq_getsockopt(entry->handle, ZMQ_TYPE, &type, &type_size) != 0) {
         throw std::runtime_error("actor " + name_ +
                                  ": ZMQ_FD failed: " + zmq_strerror(zmq_errno()));
     }
+    entry->two_way = type != ZMQ_SUB && type != ZMQ_PULL;
     epoll_event event{};
     event.events = EPOLLIN;
     event.data.u64 = watches_.size();
@@ -173,8 +177,38 @@ void Actor::AddWatch(std::unique_ptr<WatchEntry> entry) {
 bool Actor::Readable(const WatchEntry& watch) {
     int events = 0;
     std::size_t size = sizeof(events);
-    return zmq_getsockopt(watch.handle, ZMQ_EVENTS, &events, &size) == 0 &&
-           (events & ZMQ_POLLIN) != 0;
+    if (zmq_getsockopt(watch.handle, ZMQ_EVENTS, &events, &size) != 0) {
+        // ETERM: context closed under a live actor (its descriptor would stay readable)
+        CERTISLAM_CHECK(zmq_errno() == EINTR);
+        return false;
+    }
+    return (events & ZMQ_POLLIN) != 0;
+}
+
+long Actor::WaitMs(std::chrono::steady_clock::time_point next_sweep) const {
+    const bool due =
+        std::any_of(watches_.begin(), watches_.end(), [](const auto& watch) { return watch->due; });
+    const long timeout = due ? 0 : PollTimeoutMs();
+    const long to_sweep = std::max<long>(0, std::chrono::ceil<std::chrono::milliseconds>(
+                                                next_sweep - std::chrono::steady_clock::now())
+                                                .count());
+    return timeout < 0 || timeout > to_sweep ? to_sweep : timeout;
+}
+
+bool Actor::ReadDue() {
+    bool read = false;
+    // By index: a handler may add a watch (the entries stay, the vector may move).
+    for (std::size_t i = 0; i < watches_.size(); ++i) {
+        if (stop_requested_.load(std::memory_order_acquire)) break;
+        WatchEntry& watch = *watches_[i];
+        if (!watch.due) continue;
+        watch.due = false;
+        if (!Readable(watch)) continue;
+        read = true;
+        Dispatch(watch);
+        watch.due = Readable(watch);  // a batch left messages: again at once
+    }
+    return read;
 }
 
 void Actor::Every(std::chrono::nanoseconds period, std::function<void()> tick) {
@@ -257,14 +291,13 @@ void Actor::Loop() {
     std::vector<epoll_event> events(kMaxEvents);
     auto next_sweep = std::chrono::steady_clock::now() + kSweepPeriod;
     while (!stop_requested_.load(std::memory_order_acquire)) {
-        const bool due = std::any_of(watches_.begin(), watches_.end(),
-                                     [](const auto& watch) { return watch->due; });
-        long timeout = due ? 0 : PollTimeoutMs();
-        const auto to_sweep = std::chrono::ceil<std::chrono::milliseconds>(
-                                  next_sweep - std::chrono::steady_clock::now())
-                                  .count();
-        if (timeout < 0 || timeout > to_sweep) timeout = std::max<long>(0, to_sweep);
-        const int n = ::epoll_wait(epoll_fd_, events.data(), kMaxEvents, static_cast<int>(timeout));
+        // A send on a two-way socket (the last wake-up's handlers, tasks and ticks) may have taken
+        // its descriptor's signal of a message that waits: those few are checked every time.
+        for (auto& watch : watches_) {
+            if (watch->two_way && !watch->due) watch->due = Readable(*watch);
+        }
+        const int n = ::epoll_wait(epoll_fd_, events.data(), kMaxEvents,
+                                   static_cast<int>(WaitMs(next_sweep)));
         if (n < 0) {
             CERTISLAM_CHECK(errno == EINTR);
             continue;
@@ -278,24 +311,12 @@ void Actor::Loop() {
                 watches_[events[k].data.u64]->due = true;
             }
         }
-        // A descriptor that signalled before the loop last read its socket, or a signal taken
-        // by a send on a watched socket, must not leave a message waiting: every socket is
-        // checked at least every kSweepPeriod.
+        // Any other signal lost in libzmq must not leave a message waiting: a slow sweep.
         if (std::chrono::steady_clock::now() >= next_sweep) {
             for (auto& watch : watches_) watch->due = true;
             next_sweep = std::chrono::steady_clock::now() + kSweepPeriod;
         }
-        // By index: a handler may add a watch (the entries stay, the vector may move).
-        for (std::size_t i = 0; i < watches_.size(); ++i) {
-            if (stop_requested_.load(std::memory_order_acquire)) break;
-            WatchEntry& watch = *watches_[i];
-            if (!watch.due) continue;
-            watch.due = false;
-            if (!Readable(watch)) continue;
-            woke = true;
-            Dispatch(watch);
-            watch.due = Readable(watch);  // a batch left messages: again at once
-        }
+        woke = ReadDue() || woke;
         if (woke) WakeIdleTimers();  // a message or a posted task: work may be due
         RunPostedTasks();
         io_.restart();
@@ -340,7 +361,8 @@ void Actor::DispatchEndpoint(WatchEntry& watch) {
         });
         if (ok) CountHandled();
     }
-    // Batch used up: what is left may sit in the endpoint's queue, which zmq_poll does not see.
+    // Batch used up: what is left may sit in the endpoint's queue, which the descriptor does not
+    // show.
     if (watch.endpoint->queued() > 0 && !StopRequested())
         Post([this, w = &watch] { Dispatch(*w); });
 }
@@ -361,7 +383,7 @@ long Actor::PollTimeoutMs() const {
 
 void Actor::ArmTimer(TimerEntry& timer) {
     // The handler touches `timer` only when not aborted: an aborted wait means the entry is
-    // being destroyed (Teardown).
+    // being destroyed (Teardown) or re-armed sooner (WakeIdleTimers), which waits anew.
     timer.timer.async_wait([this, &timer](const boost::system::error_code& ec) {
         if (ec) return;
         timer_fires_.fetch_add(1, std::memory_order_relaxed);

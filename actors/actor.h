@@ -55,8 +55,9 @@ using EndpointHandler = std::function<void(transport::Message& message)>;
 /// Base class of every actor. A derived class creates its sockets and timers in `OnStart()`
 /// (which runs on the actor's thread: one socket per thread), and must call `Stop()` in its own
 /// destructor. The loop waits in epoll on the watched sockets' ZMQ_FDs and a wake-up eventfd
-/// with a timeout equal to the next timer deadline, reads the sockets that signalled (and every
-/// socket at least every 250 ms), then runs the io_context's ready handlers.
+/// with a timeout equal to the next timer deadline, reads the sockets that signalled (those it
+/// also sends on at every wake-up, every socket in a slow sweep), then runs the io_context's
+/// ready handlers.
 class Actor {
   public:
     /// `context` must outlive the actor; inproc edges need both ends on the same context.
@@ -123,8 +124,7 @@ class Actor {
     /// Calls `tick` every `period` while it returns true (busy); after it returns false, every
     /// `idle_period` (>= period) until the actor dispatches a message or a posted task, which
     /// brings the next tick within `period` again. For ticks whose work comes with messages: an
-    /// idle actor of a large team in one process then wakes rarely (each wake-up polls all its
-    /// sockets). Actor thread only.
+    /// idle actor of a large team in one process then wakes rarely. Actor thread only.
     void EveryUntilIdle(std::chrono::nanoseconds period, std::chrono::nanoseconds idle_period,
                         std::function<bool()> tick);
 
@@ -155,6 +155,9 @@ class Actor {
     void ArmTimer(TimerEntry& timer);
     void AddWatch(std::unique_ptr<WatchEntry> entry);
     static bool Readable(const WatchEntry& watch);  ///< a message waits (ZMQ_EVENTS)
+    /// The epoll wait: 0 when a watch is due, else until the next timer or sweep.
+    long WaitMs(std::chrono::steady_clock::time_point next_sweep) const;
+    bool ReadDue();  ///< dispatches the due watches that hold a message; true when any did
     /// Idle timers (EveryUntilIdle) fire within their busy period again.
     void WakeIdleTimers();
     void Wake();

@@ -62,8 +62,9 @@ struct SolverActorConfig {
     /// > 0.
     std::chrono::milliseconds rounds_stall{20000};
     /// A peer's request of a kept round message (a stalled round) is answered this long after
-    /// the message went out at the earliest, then at doubling intervals per peer: a request
-    /// sooner is most likely for a copy still in flight on a loaded host. > 0.
+    /// the message went out at the earliest, then at doubling intervals per peer up to
+    /// SolverActor::kMaxResendWait: a request sooner is most likely for a copy still in flight
+    /// on a loaded host, and a lost message costs this much more than a heartbeat. > 0.
     std::chrono::milliseconds resend_spacing{1000};
     /// Synchronous mode: from this round on, rounds whose linear rate projects their tolerance
     /// beyond rounds.max_rounds (TeamRoundsConfig::hand_over_after), and rounds that reach
@@ -107,7 +108,7 @@ struct SolverSnapshot {
     int overlap_ends = 0;
     bool rounds_converged = false;  ///< the rounds reached the team's gradient tolerance
     bool rounds_gave_up = false;    ///< the rounds hit max_rounds: asynchronous updates took over
-    /// In its synchronous rounds (or their finish), not converged yet: no asynchronous step ran
+    /// In its synchronous rounds (or their finish) now, not converged yet (not gone asynchronous)
     bool rounds_running = false;
     /// The certified state came from the durable log's checkpoint (a restart after the team
     /// certified), not from a round of this run.

@@ -80,7 +80,11 @@ void SolverActor::RequestStalledRound() {
     if (now - last_round_progress_ < config_.heartbeat || now - last_resend_ < resend_wait_) return;
     last_resend_ = now;
     resend_wait_ = std::min(2 * resend_wait_, std::max(config_.heartbeat, kMaxResendWait));
-    SendStatus(rounds_ ? rounds_->Wants() : std::vector<certify::RoundWant>{});
+    // The wants are of the rounds' level; after a saddle escape, until SyncTick drops those
+    // rounds, the status carries none (it is stamped with the new level).
+    SendStatus(rounds_ && rounds_level_ == state_.StaircaseLevel()
+                   ? rounds_->Wants()
+                   : std::vector<certify::RoundWant>{});
 }
 
 bool SolverActor::AnswerWants(const v1::SolverStatus& request) {
@@ -117,7 +121,7 @@ bool SolverActor::SendAgain(Kept<T>* kept, int peer, std::chrono::steady_clock::
             .first->second;
     if (now < next) return false;
     if (!SendToRobot(*poses_out_, peer, transport::Pack(kept->message), true)) return false;
-    wait *= 2;
+    wait = std::min(2 * wait, std::max(config_.resend_spacing, kMaxResendWait));
     next = now + wait;
     return true;
 }

@@ -312,7 +312,7 @@ bool WaitUntil(const std::function<bool()>& done, std::chrono::milliseconds time
 
 // EveryUntilIdle: busy ticks at the period, then none for far longer than many periods (the idle
 // period is seconds), until a message comes: the next tick follows within the busy period (plus
-// scheduling noise), not at the end of the idle one.
+// scheduling noise), not at the end of the idle one. The messages are read as they come.
 TEST(Actor, AnIdleTimerSleepsUntilAMessageComes) {
     zmq::context_t context;
     IdleTickActor actor(context);
@@ -330,6 +330,16 @@ TEST(Actor, AnIdleTimerSleepsUntilAMessageComes) {
         WaitUntil([&] { return actor.ticks > IdleTickActor::kBusyTicks; }, milliseconds(2000)));
     EXPECT_LT(steady_clock::now() - sent, kMaxTimerLateness) << "the message did not wake it";
     EXPECT_EQ(actor.messages, 1);
+    // Each message is read when its socket's descriptor signals, not at the loop's slow sweep of
+    // every socket (a quarter second): kPings messages, each sent once the last was read.
+    constexpr int kPings = 20;
+    const auto pings = steady_clock::now();
+    for (int k = 0; k < kPings; ++k) {
+        peer.send(zmq::str_buffer("ping"), zmq::send_flags::none);
+        ASSERT_TRUE(WaitUntil([&] { return actor.messages == 2 + k; }, milliseconds(2000)));
+    }
+    EXPECT_LT(steady_clock::now() - pings, milliseconds(1000))
+        << "messages waited for the sweep, not their descriptor";
     actor.Stop();
 }
 
